@@ -1,0 +1,12 @@
+"""Embedded synthetic data: procedural gait for synthetic subjects, and multi-view scenes."""
+
+from ._gait import GAITS as GAITS
+from ._gait import SUBJECTS as SUBJECTS
+from ._gait import GaitParameters as GaitParameters
+from ._gait import SubjectStyle as SubjectStyle
+from ._gait import SyntheticMotion as SyntheticMotion
+from ._gait import generate_motion as generate_motion
+from ._gait import random_subject as random_subject
+from ._scene import NO_NOISE as NO_NOISE
+from ._scene import SilhouetteNoise as SilhouetteNoise
+from ._scene import build_scene as build_scene

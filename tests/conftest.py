@@ -1,0 +1,37 @@
+"""Test configuration: float64 everywhere (gradient checks) and explicit PRNG keys."""
+
+import os
+
+import jax
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+
+SHARED_DATA = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
+
+
+class GetKey:
+    """Fresh PRNG keys from one seed by fold-in (the seed is printed on failure)."""
+
+    def __init__(self, seed: int):
+        self.seed = seed
+        self.count = 0
+        self.base = jax.random.key(seed)
+
+    def __call__(self):
+        self.count += 1
+        return jax.random.fold_in(self.base, self.count)
+
+
+@pytest.fixture
+def getkey():
+    """Per-test key source; the seed is fixed (1234) so failures reproduce."""
+    return GetKey(1234)
+
+
+@pytest.fixture(scope="session")
+def shared_data():
+    path = os.path.abspath(SHARED_DATA)
+    if not os.path.isdir(path):
+        pytest.skip("../shared/data is absent")
+    return path

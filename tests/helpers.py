@@ -1,0 +1,39 @@
+"""Shared helpers: tolerant tree comparison and tiny synthetic problems."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxtrack.camera import default_rig
+from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
+
+
+def tree_allclose(x, y, rtol=1e-5, atol=1e-8) -> bool:
+    leaves_x, tree_x = jax.tree.flatten(x)
+    leaves_y, tree_y = jax.tree.flatten(y)
+    if tree_x != tree_y:
+        return False
+    return all(np.allclose(np.asarray(a), np.asarray(b), rtol=rtol, atol=atol) for a, b in zip(leaves_x, leaves_y))
+
+
+def finite_difference_check(f, x, direction, *, eps=1e-6, rtol=1e-4, atol=1e-7):
+    """Compare the JVP of scalar-or-array ``f`` at ``x`` along ``direction`` with a central difference."""
+    f = jax.jit(f)
+    _, jvp = jax.jit(lambda x, d: jax.jvp(f, (x,), (d,)))(x, direction)
+    fd = (f(x + eps * direction) - f(x - eps * direction)) / (2 * eps)
+    np.testing.assert_allclose(np.asarray(jvp), np.asarray(fd), rtol=rtol, atol=atol)
+
+
+@functools.lru_cache(maxsize=4)
+def small_scene(num_frames: int = 8, width: int = 40, height: int = 30, noisy: bool = True, seed: int = 0):
+    """A short noisy walk (subject S1) in 4 views at a low resolution, float64 body."""
+    key = jax.random.key(seed)
+    motion = generate_motion("walk", "S1", num_frames=num_frames, fps=30.0, key=key, dtype=jnp.float64)
+    rig = default_rig(width, height, dtype=jnp.float64)
+    noise = SilhouetteNoise() if noisy else SilhouetteNoise(0, 0, 0, (0, 0), 0, (0, 0), 0, 0)
+    scene = build_scene(jax.random.fold_in(key, 1), motion, rig, noise)
+    return motion, rig, scene

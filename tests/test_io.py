@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+
+from helpers import small_scene
+from jaxtrack.io import Sequence, SequenceFileError, load_sequence, save_sequence
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return small_scene()[2]
+
+
+def test_round_trip_keeps_every_key(scene, tmp_path):
+    path = tmp_path / "walk.npz"
+    save_sequence(path, scene)
+    back = load_sequence(path)
+    for key, value in scene.to_dict().items():
+        np.testing.assert_array_equal(getattr(back, key) if key != "fps" else back.fps, value)
+    assert back.num_frames == 8 and back.has_cameras
+    rig = back.rig()
+    assert rig.num_views == 4 and rig.image_size[0] == (40, 30)
+    np.testing.assert_allclose(back.body().radii, scene.capsule_radii)
+
+
+def test_file_written_with_numpy_alone_loads(tmp_path):
+    path = tmp_path / "other_tool.npz"
+    joints = np.random.default_rng(0).normal(size=(5, 15, 3))
+    np.savez(path, fps=np.float64(50), joints3d=joints, joint_names=np.array([f"j{i}" for i in range(15)]))
+    seq = load_sequence(path)
+    assert seq.fps == 50.0 and seq.joints3d.shape == (5, 15, 3) and seq.silhouettes is None
+
+
+@pytest.mark.parametrize(
+    "change,match",
+    [
+        ({"fps": None}, "missing required key 'fps'"),
+        ({"fps": -1.0}, "key 'fps'"),
+        ({"joints3d": np.zeros((8, 15))}, r"key 'joints3d': must have shape \(\*, \*, 3\)"),
+        ({"joints3d": np.full((8, 15, 3), 1500.0)}, "look like millimetres"),
+        ({"joints3d": np.zeros((7, 15, 3))}, "key 'pose': has 8 frames but 'joints3d' has 7"),
+        ({"pose": np.zeros((8, 31))}, "pose_layout names 32"),
+        ({"camera_R": np.zeros((4, 3, 3))}, "key 'camera_R': camera 0 is not a rotation"),
+        ({"camera_t": np.zeros((3, 3))}, "key 'camera_t': has 3 cameras"),
+        ({"silhouettes": np.zeros((4, 8, 30, 40), np.float32)}, "key 'silhouettes': must be uint8"),
+        ({"silhouettes": np.full((4, 8, 30, 40), 3, np.uint8)}, "0/1 or 0/255"),
+        ({"silhouettes": np.zeros((4, 8, 30, 41), np.uint8)}, "image_size says 40x30"),
+        ({"parents": np.array([0] * 15)}, "exactly one root"),
+        ({"joint_names": np.arange(15)}, "key 'joint_names': must be a 1-D array of strings"),
+        ({"camera_K": None}, "key 'camera_K': is required with the other camera keys"),
+    ],
+)
+def test_bad_keys_are_named(scene, tmp_path, change, match):
+    fields = scene.to_dict()
+    fields.update(change)
+    path = tmp_path / "bad.npz"
+    np.savez(path, **{k: v for k, v in fields.items() if v is not None})
+    with pytest.raises(SequenceFileError, match=match):
+        load_sequence(path)
+
+
+def test_nan_is_reported_with_its_index(scene, tmp_path):
+    pose = scene.pose.copy()
+    pose[3, 7] = np.nan
+    with pytest.raises(SequenceFileError, match=r"key 'pose': contains a non-finite value at index \(3, 7\)"):
+        scene.replace(pose=pose)
+
+
+def test_not_an_npz_and_unknown_keys(tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_text("hello")
+    with pytest.raises(SequenceFileError, match="not a readable .npz"):
+        load_sequence(bad)
+    with pytest.raises(FileNotFoundError):
+        load_sequence(tmp_path / "missing.npz")
+    extra = tmp_path / "extra.npz"
+    np.savez(extra, fps=30.0, colour=np.zeros(3))
+    with pytest.raises(SequenceFileError, match=r"unknown key\(s\) \['colour'\]"):
+        load_sequence(extra)
+
+
+def test_save_validates_first_and_loses_nothing(scene, tmp_path):
+    path = tmp_path / "keep.npz"
+    save_sequence(path, scene)
+    before = path.read_bytes()
+    with pytest.raises(SequenceFileError):
+        save_sequence(path, {"fps": 30.0, "joints3d": np.zeros((2, 3))})
+    assert path.read_bytes() == before
+    seq = Sequence.create(fps=30.0, joints3d=np.zeros((2, 15, 3)))
+    assert seq.num_frames == 2
