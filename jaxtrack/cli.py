@@ -1,4 +1,4 @@
-"""Command-line entry point: ``jaxtrack demo`` and ``jaxtrack render SEQUENCE.npz``."""
+"""Command-line entry point: ``jaxtrack demo``, ``render SEQUENCE.npz`` and ``convert SOURCE OUT.npz``."""
 
 from __future__ import annotations
 
@@ -31,6 +31,25 @@ def _render(args) -> int:
     return 0
 
 
+def _convert(args) -> int:
+    import json
+
+    from ._convert import convert_motion
+
+    mapping = None
+    if args.mapping:
+        with open(args.mapping, encoding="utf-8") as handle:
+            mapping = json.load(handle)
+    report = convert_motion(
+        args.source, args.out, fps=args.fps, asf=args.asf, source_fps=args.source_fps, mapping=mapping, seed=args.seed, verbose=True
+    )
+    print(
+        f"wrote {args.out}: {report.num_frames} frames at {report.sequence.fps:g} Hz; inverse-kinematics residual "
+        f"mean {report.mean_residual_mm:.1f} mm, max {report.max_residual_mm:.1f} mm"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -51,6 +70,16 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--scale", type=int, default=3, help="GIF upscaling factor (default: %(default)s)")
     render.add_argument("--every", type=int, default=1, help="keep every n-th frame in the GIF (default: %(default)s)")
     render.set_defaults(run=_render)
+
+    convert = sub.add_parser("convert", help="turn ASF/AMC, BVH or 3-D joint files into a sequence file with joints3d and pose")
+    convert.add_argument("source", help="a .amc (with --asf), .bvh or .npz (joints3d + joint_names) motion file")
+    convert.add_argument("out", help="output sequence file (.npz)")
+    convert.add_argument("--fps", type=float, help="output frame rate (default: the source's)")
+    convert.add_argument("--asf", help="skeleton of an AMC file (default: the only .asf beside it)")
+    convert.add_argument("--source-fps", type=float, help="frame rate of the source (required for AMC; CMU: 120)")
+    convert.add_argument("--mapping", help="JSON file: HumanEva joint -> source joint name(s) (CMU and Bandai are built in)")
+    convert.add_argument("--seed", type=int, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
+    convert.set_defaults(run=_convert)
     return parser
 
 
@@ -59,7 +88,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, OSError) as err:
         print(f"jaxtrack {args.command}: error: {err}", file=sys.stderr)
         return 2
 

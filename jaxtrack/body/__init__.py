@@ -14,3 +14,11 @@ from ._skeleton import humaneva_offsets as humaneva_offsets
 from ._skeleton import humaneva_skeleton as humaneva_skeleton
 from ._skeleton import part_group_indices as part_group_indices
 from ._skeleton import with_offsets as with_offsets
+from ._ik import IKResult as IKResult
+from ._ik import fit_limb_lengths as fit_limb_lengths
+from ._ik import inverse_kinematics as inverse_kinematics
+from ._ik import solve_poses as solve_poses
+from ._retarget import BANDAI_TO_HUMANEVA as BANDAI_TO_HUMANEVA
+from ._retarget import CMU_TO_HUMANEVA as CMU_TO_HUMANEVA
+from ._retarget import guess_mapping as guess_mapping
+from ._retarget import retarget_positions as retarget_positions

@@ -260,6 +260,32 @@ def load_asf_amc(
         raise ValueError(f"fps must be positive, got {fps}")
     skeleton = read_asf(asf_path)
     channels, values = read_amc(amc_path, skeleton)
+    return motion_from_amc_values(
+        skeleton, values, fps, length_unit_m=length_unit_m, source=f"{os.fspath(asf_path)} + {os.fspath(amc_path)}"
+    )
+
+
+def amc_channels(skeleton: AsfSkeleton) -> list[str]:
+    """The AMC channel layout ``"bone.dof"``: root channels, then each bone's dofs in
+    ``:bonedata`` order (also the column order of the GPmat CMU ``.mat`` files)."""
+    return [f"root.{c.lower()}" for c in skeleton.root_order] + [
+        f"{n}.{d}" for n, b in skeleton.bones.items() for d in b.dofs
+    ]
+
+
+def motion_from_amc_values(
+    skeleton: AsfSkeleton, values, fps: float, *, length_unit_m: float | None = None, source: str = "amc values"
+) -> MotionCapture:
+    """Forward kinematics of AMC channel values (T, channels) in ``amc_channels`` order.
+
+    Values are in file units (degrees unless the ASF says radians; lengths in ASF units).
+    """
+    if not fps > 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    channels = amc_channels(skeleton)
+    values = np.asarray(values, np.float64)
+    if values.ndim != 2 or values.shape[1] != len(channels):
+        raise ValueError(f"{source}: expected (T, {len(channels)}) AMC channel values, got {values.shape}")
     scale = length_unit_m if length_unit_m is not None else 0.0254 / skeleton.length_unit
     to_rad = np.pi / 180.0 if skeleton.degrees else 1.0
     column = {c: i for i, c in enumerate(channels)}
@@ -267,11 +293,9 @@ def load_asf_amc(
     order = skeleton.order()
     names = [n for n, _ in order]
     parents = [names.index(p) if p is not None else -1 for _, p in order]
-    world_R = {}
-    world_p = {}
-    root_t = np.zeros((T, 3))
-    root_r = np.zeros((T, 3))
-    for i, ch in enumerate(skeleton.root_order):
+    world_R, world_p = {}, {}
+    root_t, root_r = np.zeros((T, 3)), np.zeros((T, 3))
+    for ch in skeleton.root_order:
         col = values[:, column[f"root.{ch.lower()}"]]
         if ch[0] == "T":
             root_t[:, "XYZ".index(ch[1])] = col * scale
@@ -293,10 +317,7 @@ def load_asf_amc(
     positions = np.stack([world_p[n] for n in names], axis=1) @ Y_UP_TO_Z_UP.T
     radians = values.copy()
     for i, c in enumerate(channels):
-        if c.split(".")[1][0] == "r":
-            radians[:, i] *= to_rad
-        else:
-            radians[:, i] *= scale
+        radians[:, i] *= to_rad if c.split(".")[1][0] == "r" else scale
     return MotionCapture(
         joint_names=tuple(names),
         parents=tuple(parents),
@@ -304,5 +325,5 @@ def load_asf_amc(
         fps=float(fps),
         channels=tuple(tuple(c.split(".", 1)) for c in channels),
         values=radians,
-        source=f"{os.fspath(asf_path)} + {os.fspath(amc_path)}",
+        source=source,
     )

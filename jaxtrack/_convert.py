@@ -1,0 +1,100 @@
+"""``jaxtrack convert``: motion capture (ASF/AMC, BVH, 3-D joint arrays) -> a sequence file
+with HumanEva ``joints3d``, fitted ``pose`` vectors and ``fps``."""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import os
+
+import jax
+import numpy as np
+
+from .body import inverse_kinematics, retarget_positions
+from .io import Sequence, load_asf_amc, load_bvh, load_joints3d, resample, save_sequence
+
+
+@dataclasses.dataclass
+class ConversionReport:
+    """What ``convert_motion`` produced."""
+
+    sequence: Sequence
+    source_fps: float
+    num_frames: int
+    mean_residual_mm: float
+    max_residual_mm: float
+    residual_per_joint_mm: np.ndarray
+    limb_lengths: dict
+
+
+def load_motion(source: str, *, asf: str | None = None, source_fps: float | None = None):
+    """Load any supported motion file as a ``MotionCapture`` (chosen by extension)."""
+    extension = os.path.splitext(source)[1].lower()
+    if extension == ".amc":
+        if asf is None:
+            candidates = glob.glob(os.path.join(os.path.dirname(source) or ".", "*.asf"))
+            if len(candidates) != 1:
+                raise ValueError(f"{source}: an AMC file needs its skeleton; pass --asf (found {len(candidates)} .asf files beside it)")
+            asf = candidates[0]
+        if source_fps is None:
+            raise ValueError(f"{source}: AMC files do not store their frame rate; pass --source-fps (CMU: 120)")
+        return load_asf_amc(asf, source, fps=source_fps)
+    if extension == ".bvh":
+        motion = load_bvh(source)
+        return motion if source_fps is None else dataclasses.replace(motion, fps=float(source_fps))
+    if extension == ".npz":
+        motion = load_joints3d(source)
+        return motion if source_fps is None else dataclasses.replace(motion, fps=float(source_fps))
+    raise ValueError(f"{source}: unsupported motion format {extension!r} (use .amc with .asf, .bvh or .npz)")
+
+
+def convert_motion(
+    source: str,
+    out: str | None,
+    *,
+    fps: float | None = None,
+    asf: str | None = None,
+    source_fps: float | None = None,
+    mapping: dict | None = None,
+    seed: int = 0,
+    verbose: bool = False,
+) -> ConversionReport:
+    """Convert a motion file to a sequence file (``out``; not written when None).
+
+    Args:
+        fps: output frame rate (default: the source's).
+        asf: the ASF skeleton of an AMC file (default: the only .asf beside it).
+        source_fps: the source frame rate (required for AMC).
+        mapping: HumanEva joint -> source joint(s); guessed for CMU and Bandai skeletons.
+        seed: PRNG seed of the inverse kinematics' first-frame restarts.
+    """
+    motion = load_motion(source, asf=asf, source_fps=source_fps)
+    joints = retarget_positions(motion.positions, motion.joint_names, mapping)
+    target_fps = float(fps) if fps is not None else motion.fps
+    joints = resample(joints, motion.fps, target_fps)
+    if verbose:
+        print(f"{source}: {motion.num_frames} frames at {motion.fps:g} Hz -> {joints.shape[0]} at {target_fps:g} Hz; fitting poses")
+    result = inverse_kinematics(joints, key=jax.random.key(seed))
+    skeleton = result.skeleton
+    sequence = Sequence.create(
+        fps=target_fps,
+        joint_names=np.array(skeleton.joint_names),
+        parents=np.array(skeleton.parents),
+        joints3d=joints,
+        pose=np.asarray(result.pose, np.float64),
+        pose_layout=np.array(skeleton.pose_layout),
+        skeleton_offsets=np.asarray(skeleton.offsets, np.float64),
+    )
+    if out is not None:
+        save_sequence(out, sequence)
+    residual = np.asarray(result.residual_mm)
+    lengths = {k: float(np.linalg.norm(v)) for k, v in zip(skeleton.joint_names, np.asarray(skeleton.offsets))}
+    return ConversionReport(
+        sequence=sequence,
+        source_fps=motion.fps,
+        num_frames=joints.shape[0],
+        mean_residual_mm=float(residual.mean()),
+        max_residual_mm=float(residual.max()),
+        residual_per_joint_mm=residual.mean(axis=0),
+        limb_lengths=lengths,
+    )

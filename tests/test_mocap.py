@@ -1,0 +1,306 @@
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.body import forward_kinematics, inverse_kinematics, retarget_positions
+from jaxtrack.cli import main
+from jaxtrack.data import generate_motion
+from jaxtrack.io import (
+    MotionFileError,
+    load_asf_amc,
+    load_bvh,
+    load_joints3d,
+    load_sequence,
+    read_asf,
+    resample,
+    save_sequence,
+)
+
+ASF = """# a two-bone test skeleton
+:version 1.10
+:name test
+:units
+  mass 1.0
+  length 1.0
+  angle deg
+:root
+   order TX TY TZ RX RY RZ
+   axis XYZ
+   position 0 0 0
+   orientation 0 0 0
+:bonedata
+  begin
+     id 1
+     name up
+     direction 0 1 0
+     length 2.0
+     axis 0 0 0 XYZ
+    dof rx ry rz
+    limits (-180 180)
+           (-180 180)
+           (-180 180)
+  end
+  begin
+     id 2
+     name side
+     direction 1 0 0
+     length 1.0
+     axis 0 0 90 XYZ
+    dof rx
+  end
+:hierarchy
+  begin
+    root up
+    up side
+  end
+"""
+
+
+def write_amc(path, frames):
+    lines = [":FULLY-SPECIFIED", ":DEGREES"]
+    for i, (root, up, side) in enumerate(frames, start=1):
+        lines += [str(i), "root " + " ".join(map(str, root)), "up " + " ".join(map(str, up)), "side " + " ".join(map(str, side))]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_bvh(path, frames, frame_time=0.04):
+    """A root with 6 channels, a child with 3 rotation channels (ZXY) and an end site, centimetres."""
+    text = """HIERARCHY
+ROOT hips
+{
+\tOFFSET 0 0 0
+\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+\tJOINT spine
+\t{
+\t\tOFFSET 0 50 0
+\t\tCHANNELS 3 Zrotation Xrotation Yrotation
+\t\tEnd Site
+\t\t{
+\t\t\tOFFSET 0 40 0
+\t\t}
+\t}
+}
+MOTION
+"""
+    text += f"Frames: {len(frames)}\nFrame Time: {frame_time}\n"
+    text += "\n".join(" ".join(f"{v:g}" for v in row) for row in frames) + "\n"
+    path.write_text(text)
+
+
+@pytest.fixture
+def asf_amc(tmp_path):
+    asf = tmp_path / "t.asf"
+    asf.write_text(ASF)
+    amc = tmp_path / "t.amc"
+    write_amc(amc, [((0, 0, 0, 0, 0, 0), (0, 0, 0), (0,)), ((1, 2, 3, 0, 0, 90), (0, 0, 0), (90,))])
+    return asf, amc
+
+
+def test_asf_amc_forward_kinematics_by_hand(asf_amc):
+    asf, amc = asf_amc
+    motion = load_asf_amc(asf, amc, fps=60.0, length_unit_m=1.0)
+    assert motion.joint_names == ("root", "up", "side") and motion.parents == (-1, 0, 1)
+    # Frame 1: "up" ends 2 above the root (Y up in the file -> Z up here), "side" 1 along +x.
+    np.testing.assert_allclose(motion.positions[0], [[0, 0, 0], [0, 0, 2], [1, 0, 2]], atol=1e-12)
+    # Frame 2: root at (1, 2, 3) file units turned 90 deg about the file's z axis: its y axis
+    # becomes -x. "side" rotates 90 deg about its local x (= file z after C): no change in
+    # direction for a bone along its own local ... so check through the composed rotation.
+    p = motion.positions[1]
+    root_file = np.array([1.0, 2.0, 3.0])
+    to_z_up = lambda v: np.array([v[0], -v[2], v[1]])  # noqa: E731
+    np.testing.assert_allclose(p[0], to_z_up(root_file), atol=1e-12)
+    np.testing.assert_allclose(p[1], to_z_up(root_file + [-2.0, 0, 0]), atol=1e-12)
+    # side: direction (1,0,0) under R_root * C Rx(90) C^-1 with C = Rz(90): C Rx C^-1 = Ry(-90)...
+    Rz = lambda a: np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])  # noqa: E731
+    Rx = lambda a: np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])  # noqa: E731
+    C = Rz(np.pi / 2)
+    R_side = Rz(np.pi / 2) @ C @ Rx(np.pi / 2) @ C.T
+    np.testing.assert_allclose(p[2], to_z_up(root_file + [-2.0, 0, 0] + R_side @ [1.0, 0, 0]), atol=1e-12)
+    # Default units: inches scaled by the file's length factor (1.0 here).
+    assert load_asf_amc(asf, amc, fps=60.0).positions[0, 1, 2] == pytest.approx(2 * 0.0254)
+
+
+def test_bvh_written_and_read_back(tmp_path):
+    path = tmp_path / "t.bvh"
+    frames = [[10, 90, -5, 0, 0, 0, 0, 0, 0], [10, 90, -5, 90, 0, 0, 0, 90, 0]]
+    write_bvh(path, frames)
+    motion = load_bvh(path)  # centimetres guessed? rest height 90 cm -> 0.9 units > 3? no: give units
+    motion = load_bvh(path, unit_m=0.01)
+    assert motion.fps == pytest.approx(25.0) and motion.joint_names == ("hips", "spine")
+    to_z_up = lambda v: np.array([v[0], -v[2], v[1]])  # noqa: E731
+    np.testing.assert_allclose(motion.positions[0, 0], to_z_up([0.1, 0.9, -0.05]))
+    np.testing.assert_allclose(motion.positions[0, 1], to_z_up([0.1, 1.4, -0.05]))
+    # Frame 2: hips turned 90 deg about the file's z: the spine offset (0, 50, 0) points to -x.
+    np.testing.assert_allclose(motion.positions[1, 1], to_z_up([0.1 - 0.5, 0.9, -0.05]), atol=1e-12)
+    assert motion.values[1, 3] == pytest.approx(np.pi / 2)
+
+
+@pytest.mark.parametrize(
+    "mutate,match",
+    [
+        (lambda t: t.replace("Frames: 2", "Frames: 3"), r"t\.bvh:\d+: header says 3 frames, found 2"),
+        (lambda t: t.rstrip("\n").rsplit("\n", 1)[0] + "\n10 90 -5 0 0\n", r"t\.bvh:20: frame has 5 values, the hierarchy declares 9"),
+        (lambda t: t.replace("10 90 -5 90", "10 90 -5 abc"), r"t\.bvh:20: non-numeric value 'abc'"),
+        (lambda t: t.replace("CHANNELS 3 Zrotation", "CHANNELS 4 Zrotation"), r"t\.bvh:9: CHANNELS says 4 but lists 3"),
+        (lambda t: t.split("MOTION")[0], r"t\.bvh:\d+: no MOTION section"),
+        (lambda t: t.replace("Yrotation\n\t\tEnd", "Wrotation\n\t\tEnd"), r"t\.bvh:9: unknown channel 'Wrotation'"),
+    ],
+)
+def test_bad_bvh_names_file_and_line(tmp_path, mutate, match):
+    path = tmp_path / "t.bvh"
+    write_bvh(path, [[10, 90, -5, 0, 0, 0, 0, 0, 0], [10, 90, -5, 90, 0, 0, 0, 90, 0]])
+    path.write_text(mutate(path.read_text()))
+    with pytest.raises(MotionFileError, match=match):
+        load_bvh(path)
+
+
+def test_bad_amc_and_asf_name_file_and_line(asf_amc, tmp_path):
+    asf, amc = asf_amc
+    text = amc.read_text()
+    amc.write_text(text.replace("side 90", "elbow 90"))
+    with pytest.raises(MotionFileError, match=r"t\.amc:10: unknown bone 'elbow'"):
+        load_asf_amc(asf, amc, fps=120.0)
+    amc.write_text(text.replace("up 0 0 0\nside 90", "up 0 x 0\nside 90"))
+    with pytest.raises(MotionFileError, match=r"t\.amc:9: bone 'up': non-numeric value"):
+        load_asf_amc(asf, amc, fps=120.0)
+    amc.write_text(text.replace("up 0 0 0\nside 90", "up 0 0\nside 90"))
+    with pytest.raises(MotionFileError, match=r"t\.amc:9: bone 'up': expected 3 numbers, got 2"):
+        load_asf_amc(asf, amc, fps=120.0)
+    amc.write_text(text.rsplit("side", 1)[0])  # truncated: the last frame lacks a bone
+    with pytest.raises(MotionFileError, match=r"t\.amc:7: frame 2 lacks bone\(s\) \['side'\]"):
+        load_asf_amc(asf, amc, fps=120.0)
+    bad_asf = tmp_path / "bad.asf"
+    bad_asf.write_text(ASF.replace("    up side\n", "    up hand\n"))
+    with pytest.raises(MotionFileError, match=r"bad\.asf:36: hierarchy names unknown bone\(s\) \['hand'\]"):
+        read_asf(bad_asf)
+    bad_asf.write_text(ASF.split("  end\n  begin\n     id 2")[0])
+    with pytest.raises(MotionFileError, match=r"bad\.asf:\d+: bone block not closed"):
+        read_asf(bad_asf)
+
+
+def test_resample():
+    values = np.arange(13, dtype=float)[:, None] * np.array([[1.0, 2.0]])  # 120 Hz ramp
+    out = resample(values, 120.0, 30.0)
+    np.testing.assert_allclose(out[:, 0], [0, 4, 8, 12])
+    out = resample(values, 120.0, 50.0)
+    np.testing.assert_allclose(out[:, 1], 2 * np.arange(6) * 2.4)  # 0.1 s at 50 Hz: 6 frames
+
+
+def test_ik_round_trip_recovers_the_pose():
+    motion = generate_motion("walk", "S2", num_frames=40, fps=30.0, key=jax.random.key(0), dtype=jnp.float64)
+    result = inverse_kinematics(motion.joints3d, key=jax.random.key(1))
+    np.testing.assert_allclose(
+        np.asarray(result.skeleton.offsets), np.asarray(motion.body.skeleton.offsets), atol=1e-9
+    )
+    assert float(result.residual_mm.max()) < 1.0
+    # Every joint is reproduced, and so is every angle the 15 joints determine (to 0.6 degrees:
+    # the pelvis yaw rests on the hips alone, 0.1 m from the root). Twists about a bone's own
+    # axis and the clavicles trade against each other (null space), so they are not compared.
+    pose = np.asarray(result.pose)
+    identifiable = [n for n in result.skeleton.pose_layout if "twist" not in n and "clavicle" not in n]
+    assert len(identifiable) == 22
+    for name in identifiable:
+        k = result.skeleton.dof_index(name)
+        np.testing.assert_allclose(pose[:, k], motion.pose[:, k], atol=1e-2, err_msg=name)
+    assert float(result.skeleton.limit_violation(result.pose).max()) == 0.0
+
+
+def test_ik_and_mapping_errors():
+    with pytest.raises(ValueError, match=r"\(T, 15, 3\)"):
+        inverse_kinematics(np.zeros((4, 14, 3)), restarts=0)
+    bad = np.zeros((4, 15, 3))
+    bad[2, 3, 0] = np.nan
+    with pytest.raises(ValueError, match="frame 2, joint lelbow"):
+        inverse_kinematics(bad, restarts=0)
+    with pytest.raises(ValueError, match="needs a PRNG key"):
+        inverse_kinematics(np.random.default_rng(0).normal(size=(4, 15, 3)))
+    with pytest.raises(ValueError, match="no built-in joint mapping fits"):
+        retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"])
+    with pytest.raises(ValueError, match="lacks"):
+        retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"], {n: "zz" for n in __import__("jaxtrack").body.HUMANEVA_JOINTS})
+
+
+def test_convert_cli_on_joint_arrays(tmp_path, capsys):
+    motion = generate_motion("walk", "S1", num_frames=30, fps=60.0, dtype=jnp.float64)
+    source = tmp_path / "joints.npz"
+    np.savez(source, fps=60.0, joints3d=motion.joints3d, joint_names=np.array(motion.body.skeleton.joint_names))
+    assert load_joints3d(source).num_frames == 30
+    out = tmp_path / "out.npz"
+    assert main(["convert", str(source), str(out), "--fps", "30"]) == 0
+    seq = load_sequence(out)
+    assert seq.fps == 30.0 and seq.pose.shape == (15, 32) and seq.joints3d.shape == (15, 15, 3)
+    np.testing.assert_allclose(seq.joints3d, motion.joints3d[::2], atol=1e-9)
+    assert "residual mean" in capsys.readouterr().out
+    assert main(["convert", str(tmp_path / "x.amc"), str(out)]) == 2
+    assert "pass --asf" in capsys.readouterr().err
+
+
+# --- real motion capture from ../shared/data (skipped when absent) -------------------------
+
+
+def _speed(joints, fps):
+    return np.linalg.norm(np.diff(joints[:, 0, :2], axis=0), axis=1).mean() * fps
+
+
+def _check_ik(joints, key):
+    result = inverse_kinematics(joints, key=key)
+    residual = float(result.residual_mm.mean())
+    pose = np.asarray(result.pose)
+    jumps = np.abs(np.diff(pose[:, 3:], axis=0)).max()
+    assert residual < 15.0, residual
+    assert float(result.skeleton.limit_violation(result.pose).max()) == 0.0
+    assert jumps < 1.0, jumps  # no wrapping or flips between frames (largest real step ~0.6 rad)
+    return residual
+
+
+def test_cmu_walk_and_jog(shared_data):
+    cmu = os.path.join(shared_data, "cmu35")
+    motion = load_asf_amc(os.path.join(cmu, "35.asf"), os.path.join(cmu, "35_01.amc"), fps=120.0)
+    lengths = motion.bone_lengths()
+    np.testing.assert_allclose(lengths.std(axis=0), 0, atol=1e-9)
+    assert 1.2 < _speed(motion.positions, 120.0) < 1.4
+    assert 1.55 < motion.joint("head")[:, 2].mean() < 1.75
+    walk = resample(retarget_positions(motion.positions, motion.joint_names), 120.0, 30.0)[:60]
+    walk_residual = _check_ik(walk, jax.random.key(0))
+
+    from scipy.io import loadmat
+
+    from jaxtrack.io import motion_from_amc_values, read_asf
+
+    data = loadmat(os.path.join(cmu, "cmu35WalkJog.mat"))
+    jog_rows = data["lbls"][:, 16] == 1  # trial 35_17, a jog
+    skeleton = read_asf(os.path.join(cmu, "35.asf"))
+    jog = motion_from_amc_values(skeleton, data["Y"][jog_rows], fps=30.0)
+    # The .mat's first sequence equals every 4th frame of 35_01.amc.
+    first = motion_from_amc_values(skeleton, data["Y"][data["lbls"][:, 0] == 1][:3], fps=30.0)
+    np.testing.assert_allclose(first.positions, motion.positions[:12:4], atol=1e-6)
+    assert 2.5 < _speed(jog.positions, 30.0) < 4.0
+    jog_residual = _check_ik(retarget_positions(jog.positions, jog.joint_names), jax.random.key(1))
+    print(f"CMU IK residual: walk {walk_residual:.1f} mm, jog {jog_residual:.1f} mm")
+
+
+def test_bandai_walk_and_run(shared_data):
+    folder = os.path.join(shared_data, "bandai_walk_run")
+    walk = load_bvh(os.path.join(folder, "dataset-2_walk_normal_001.bvh"))
+    run = load_bvh(os.path.join(folder, "dataset-2_run_normal_001.bvh"))
+    assert walk.fps == pytest.approx(30.0, rel=1e-4)  # "Frame Time: 0.0333333"
+    assert 1.0 < _speed(walk.joint("Hips")[:, None], 30.0) < 1.25
+    assert 2.8 < _speed(run.joint("Hips")[:, None], 30.0) < 4.2
+    lengths = walk.bone_lengths()[:, 2:]  # joint_Root -> Hips carries the world translation
+    np.testing.assert_allclose(lengths.std(axis=0), 0, atol=1e-9)
+    residuals = [
+        _check_ik(retarget_positions(m.positions, m.joint_names)[:60], jax.random.key(i)) for i, m in enumerate((walk, run))
+    ]
+    print(f"Bandai IK residual: walk {residuals[0]:.1f} mm, run {residuals[1]:.1f} mm")
+
+
+def test_convert_cli_on_real_amc(shared_data, tmp_path):
+    cmu = os.path.join(shared_data, "cmu35")
+    out = tmp_path / "35_01.npz"
+    assert main(["convert", os.path.join(cmu, "35_01.amc"), str(out), "--source-fps", "120", "--fps", "30"]) == 0
+    seq = load_sequence(out)
+    assert seq.num_frames == 90 and seq.pose.shape == (90, 32)
+    save_sequence(tmp_path / "again.npz", seq)
