@@ -202,9 +202,7 @@ def read_amc(path: str | os.PathLike, skeleton: AsfSkeleton) -> tuple[list[str],
     path = os.fspath(path)
     if not os.path.exists(path):
         raise FileNotFoundError(f"no AMC file at {path!r}")
-    layout = [("root", ch.lower()) for ch in skeleton.root_order]
-    for name, bone in skeleton.bones.items():
-        layout += [(name, d) for d in bone.dofs]
+    layout = [tuple(c.split(".", 1)) for c in amc_channels(skeleton)]
     index = {key: i for i, key in enumerate(layout)}
     sizes = {"root": len(skeleton.root_order), **{n: len(b.dofs) for n, b in skeleton.bones.items()}}
     frames: list[np.ndarray] = []

@@ -1,0 +1,319 @@
+"""Pose manifolds: PCA, GPLVM, back-constrained GPLVM and GPDM, each an equinox Module with a
+pure objective differentiated by autodiff (../shared/METHODS.md section 3).
+
+- GPLVM (000 eqs. 13-16): maximise ``ln p(Y|Z) - 1/2 ||Z||_F^2`` over latent points Z and the
+  kernel hyperparameters.
+- BC-GPLVM (000 eqs. 21-22): ``Z = g(Y)``, ``g_i(y) = sum_t a_ti k_x(y, y_t) + b_i`` with
+  ``k_x = exp(-gamma_x/2 ||y - y'||^2)``; the weights ``a, b`` are optimised instead of Z.
+- GPDM (001 eqs. 5-11): the GPLVM likelihood with per-dimension scales ``W`` plus a GP on the
+  latent dynamics ``x_t -> x_{t+1}`` (linear + RBF kernel) within each training sequence, and
+  the ``prod 1/theta`` priors on the hyperparameters.
+
+Training data are centred (and scaled per dimension to unit variance when ``scale=True``).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._custom_types import Array, Float
+from ._kernels import (
+    LinearRBFKernel,
+    RBFBiasKernel,
+    gaussian_log_marginal,
+    linear_rbf_kernel,
+    rbf_bias_kernel,
+    safe_cholesky,
+    squared_distances,
+)
+
+
+def check_training_data(Y, latent_dim: int, name: str = "training poses") -> np.ndarray:
+    """Validate (N, D) training data for a latent dimension; raises ``ValueError`` clearly."""
+    Y = np.asarray(Y, np.float64)
+    if Y.ndim != 2:
+        raise ValueError(f"{name} must be (frames, dims), got shape {Y.shape}")
+    n, d = Y.shape
+    if not np.all(np.isfinite(Y)):
+        bad = np.argwhere(~np.isfinite(Y))[0]
+        raise ValueError(f"{name} contain a non-finite value at frame {bad[0]}, dimension {bad[1]}")
+    if latent_dim < 1:
+        raise ValueError(f"latent_dim must be at least 1, got {latent_dim}")
+    if latent_dim > d:
+        raise ValueError(f"latent_dim {latent_dim} is larger than the data dimension {d}")
+    if n <= latent_dim + 1:
+        raise ValueError(f"{n} frames are too few for a {latent_dim}-D latent space (need more than {latent_dim + 1})")
+    varying = np.ptp(Y, axis=0) > 0
+    if not varying.any():
+        raise ValueError(f"{name} are constant: every dimension has zero variance")
+    return Y
+
+
+def standardise(Y: np.ndarray, scale: bool):
+    """Centre (and optionally scale per dimension) data; constant dimensions keep scale 1."""
+    mean = Y.mean(axis=0)
+    std = Y.std(axis=0)
+    std = np.where(std > 1e-12, std, 1.0) if scale else np.ones_like(std)
+    return (Y - mean) / std, mean, std
+
+
+def pca(Y: Float[Array, "n d"], latent_dim: int) -> tuple[Float[Array, "n q"], Float[Array, "q d"]]:
+    """Principal components of centred data: scores (n, q) and components (q, d)."""
+    U, S, Vt = jnp.linalg.svd(Y - Y.mean(axis=0), full_matrices=False)
+    # Deterministic signs: the largest entry of each component is positive.
+    signs = jnp.sign(Vt[:latent_dim][jnp.arange(latent_dim), jnp.argmax(jnp.abs(Vt[:latent_dim]), axis=1)])
+    return U[:, :latent_dim] * S[:latent_dim] * signs, Vt[:latent_dim] * signs[:, None]
+
+
+class PCAModel(eqx.Module):
+    """Linear baseline: ``y = mean + scale * (z @ components)``."""
+
+    components: Float[Array, "q d"]
+    mean: Float[Array, " d"]
+    scale: Float[Array, " d"]
+
+    def encode(self, Y):
+        return ((Y - self.mean) / self.scale) @ self.components.T
+
+    def decode(self, Z):
+        return self.mean + self.scale * (Z @ self.components)
+
+
+def fit_pca(Y, latent_dim: int, *, scale: bool = False) -> PCAModel:
+    """A fitted ``PCAModel`` (closed form)."""
+    Y = check_training_data(Y, latent_dim)
+    Yn, mean, std = standardise(Y, scale)
+    _, components = pca(jnp.asarray(Yn), latent_dim)
+    return PCAModel(components=components, mean=jnp.asarray(mean), scale=jnp.asarray(std))
+
+
+def _initial_latent(Yn, latent_dim):
+    scores, _ = pca(jnp.asarray(Yn), latent_dim)
+    return scores / jnp.std(scores[:, 0])  # unit scale, matching the ||Z||^2 / 2 prior
+
+
+class GPLVM(eqx.Module):
+    """GPLVM with RBF + bias kernel (000 eqs. 13-16).
+
+    Attributes:
+        latent: (N, q) latent points Z.
+        kernel: kernel and noise hyperparameters.
+        data: (N, D) standardised training data (fixed during fitting).
+        mean, scale: (D,) the standardisation, to map predictions back to poses.
+    """
+
+    latent: Float[Array, "n q"]
+    kernel: RBFBiasKernel
+    data: Float[Array, "n d"]
+    mean: Float[Array, " d"]
+    scale: Float[Array, " d"]
+
+    def training_latent(self):
+        return self.latent
+
+    def objective(self):
+        """``ln p(Y|Z) - 1/2 ||Z||_F^2`` (000 eq. 16), to be maximised."""
+        Z = self.latent
+        return gaussian_log_marginal(self.kernel.gram(Z), self.data) - 0.5 * jnp.sum(Z * Z)
+
+    def trainable(self):
+        """Filter spec: True for the leaves fitting changes."""
+        spec = jax.tree.map(lambda _: False, self)
+        return eqx.tree_at(lambda m: (m.latent, m.kernel), spec, (True, jax.tree.map(lambda _: True, self.kernel)))
+
+
+class KernelBackConstraint(eqx.Module):
+    """``z = k_x(y, Y_train) A + b`` with ``k_x = exp(-gamma_x/2 ||y - y'||^2)`` (000 eq. 22).
+
+    ``inputs`` (standardised training poses) and ``gamma_x`` are fixed; ``weights`` and ``bias``
+    are learned.
+    """
+
+    weights: Float[Array, "n q"]
+    bias: Float[Array, " q"]
+    inputs: Float[Array, "n d"]
+    gamma_x: Float[Array, ""]
+
+    def __call__(self, Y: Float[Array, "m d"]) -> Float[Array, "m q"]:
+        K = jnp.exp(-0.5 * self.gamma_x * squared_distances(Y, self.inputs))
+        return K @ self.weights + self.bias
+
+
+class BCGPLVM(eqx.Module):
+    """Back-constrained GPLVM (000 eqs. 21-22): the latent points are ``g(Y)``."""
+
+    back: KernelBackConstraint
+    kernel: RBFBiasKernel
+    data: Float[Array, "n d"]
+    mean: Float[Array, " d"]
+    scale: Float[Array, " d"]
+
+    @property
+    def latent(self):
+        return self.back(self.data)
+
+    def training_latent(self):
+        return self.latent
+
+    def objective(self):
+        Z = self.latent
+        return gaussian_log_marginal(self.kernel.gram(Z), self.data) - 0.5 * jnp.sum(Z * Z)
+
+    def encode(self, poses: Float[Array, "m d"]) -> Float[Array, "m q"]:
+        """Poses (in pose units) -> latent points through the back-constraint."""
+        return self.back((poses - self.mean) / self.scale)
+
+    def trainable(self):
+        spec = jax.tree.map(lambda _: False, self)
+        return eqx.tree_at(
+            lambda m: (m.back.weights, m.back.bias, m.kernel),
+            spec,
+            (True, True, jax.tree.map(lambda _: True, self.kernel)),
+        )
+
+
+class GPDM(eqx.Module):
+    """Gaussian process dynamical model (001 eqs. 5-11).
+
+    Attributes:
+        latent: (N, q) latent trajectory X, sequences stacked in time order.
+        kernel: the pose kernel (RBF + bias, noise).
+        dynamics: the latent dynamics kernel (linear + RBF, noise).
+        log_w: (D,) log per-dimension output scales W.
+        data, mean, scale: as for ``GPLVM``.
+        sequence_starts: first frame of each training sequence (static), ending with N.
+    """
+
+    latent: Float[Array, "n q"]
+    kernel: RBFBiasKernel
+    dynamics: LinearRBFKernel
+    log_w: Float[Array, " d"]
+    data: Float[Array, "n d"]
+    mean: Float[Array, " d"]
+    scale: Float[Array, " d"]
+    sequence_starts: tuple[int, ...] = eqx.field(static=True)
+
+    def training_latent(self):
+        return self.latent
+
+    def _transitions(self):
+        """Indices of (x_t, x_{t+1}) pairs that stay inside one sequence, and the first frames."""
+        starts = self.sequence_starts
+        inputs, outputs = [], []
+        for begin, end in zip(starts[:-1], starts[1:]):
+            inputs += list(range(begin, end - 1))
+            outputs += list(range(begin + 1, end))
+        return np.array(inputs), np.array(outputs), np.array(starts[:-1])
+
+    def objective(self):
+        """Log posterior (negative of 001 eq. 11, up to a constant), to be maximised."""
+        X, Y = self.latent, self.data
+        n, d = Y.shape
+        q = X.shape[1]
+        w = jnp.exp(self.log_w)
+        # ln p(Y | X, beta, W) (001 eq. 6): the GP likelihood of Y W, plus N ln|W|.
+        log_lik = gaussian_log_marginal(self.kernel.gram(X), Y * w) + n * jnp.sum(self.log_w)
+        # ln p(X | alpha) (001 eqs. 7-8): first frames ~ N(0, I), transitions ~ GP.
+        ins, outs, firsts = self._transitions()
+        x_in, x_out = X[ins], X[outs]
+        log_dyn = gaussian_log_marginal(self.dynamics.gram(x_in), x_out) if len(ins) else 0.0
+        log_first = -0.5 * jnp.sum(X[firsts] ** 2) - 0.5 * q * len(firsts) * jnp.log(2 * jnp.pi)
+        # p(theta) proportional to prod 1/theta (001 eq. 10) for the kernel hyperparameters.
+        log_prior = -(self.kernel.log_beta + self.kernel.log_gamma + self.kernel.log_beta0 + self.kernel.log_noise)
+        log_prior = log_prior - (self.dynamics.log_a1 + self.dynamics.log_a2 + self.dynamics.log_a3 + self.dynamics.log_noise)
+        return log_lik + log_dyn + log_first + log_prior
+
+    def trainable(self):
+        spec = jax.tree.map(lambda _: False, self)
+        return eqx.tree_at(
+            lambda m: (m.latent, m.kernel, m.dynamics, m.log_w),
+            spec,
+            (True, jax.tree.map(lambda _: True, self.kernel), jax.tree.map(lambda _: True, self.dynamics), True),
+        )
+
+
+def make_gplvm(Y, latent_dim: int = 2, *, scale: bool = False, dtype=jnp.float64) -> GPLVM:
+    """A GPLVM initialised from PCA (latent points) and data-scaled hyperparameters."""
+    Y = check_training_data(Y, latent_dim)
+    Yn, mean, std = standardise(Y, scale)
+    return GPLVM(
+        latent=jnp.asarray(_initial_latent(Yn, latent_dim), dtype),
+        kernel=rbf_bias_kernel(beta=float(np.mean(Yn.var(axis=0))) + 1e-3, gamma=1.0, beta0=1e-2, noise=1e-2, dtype=dtype),
+        data=jnp.asarray(Yn, dtype),
+        mean=jnp.asarray(mean, dtype),
+        scale=jnp.asarray(std, dtype),
+    )
+
+
+def make_bc_gplvm(Y, latent_dim: int = 2, *, gamma_x: float | None = None, scale: bool = False, dtype=jnp.float64) -> BCGPLVM:
+    """A back-constrained GPLVM whose back-constraint reproduces the PCA initialisation.
+
+    Args:
+        gamma_x: inverse width of the back-constraint kernel (000 fixes it: 1e-4 in its pose
+            units); default ``1 / (mean squared distance between training poses)``.
+    """
+    Y = check_training_data(Y, latent_dim)
+    Yn, mean, std = standardise(Y, scale)
+    Yj = jnp.asarray(Yn, dtype)
+    if gamma_x is None:
+        gamma_x = 1.0 / float(jnp.mean(squared_distances(Yj, Yj)))
+    if not gamma_x > 0:
+        raise ValueError(f"gamma_x must be positive, got {gamma_x}")
+    Z0 = _initial_latent(Yn, latent_dim).astype(dtype)
+    Kx = jnp.exp(-0.5 * gamma_x * squared_distances(Yj, Yj))
+    # Least-squares weights so that g(Y) starts at the PCA latent points.
+    L = safe_cholesky(Kx + 1e-6 * jnp.eye(Kx.shape[0], dtype=dtype))
+    weights = jax.scipy.linalg.cho_solve((L, True), Z0)
+    return BCGPLVM(
+        back=KernelBackConstraint(weights=weights, bias=jnp.zeros(latent_dim, dtype), inputs=Yj, gamma_x=jnp.asarray(gamma_x, dtype)),
+        kernel=rbf_bias_kernel(beta=float(np.mean(Yn.var(axis=0))) + 1e-3, gamma=1.0, beta0=1e-2, noise=1e-2, dtype=dtype),
+        data=Yj,
+        mean=jnp.asarray(mean, dtype),
+        scale=jnp.asarray(std, dtype),
+    )
+
+
+def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, dtype=jnp.float64) -> GPDM:
+    """A GPDM over one or more training sequences (list of (T_i, D) arrays), PCA-initialised."""
+    if isinstance(sequences, np.ndarray) and sequences.ndim == 2:
+        sequences = [sequences]
+    sequences = [np.asarray(s, np.float64) for s in sequences]
+    if not sequences or any(s.ndim != 2 or s.shape[0] < 2 for s in sequences):
+        raise ValueError("GPDM needs one or more (T, D) sequences with at least 2 frames each")
+    if len({s.shape[1] for s in sequences}) != 1:
+        raise ValueError(f"sequences differ in dimension: {[s.shape[1] for s in sequences]}")
+    Y = check_training_data(np.concatenate(sequences), latent_dim)
+    Yn, mean, std = standardise(Y, scale)
+    starts = tuple(int(v) for v in np.cumsum([0] + [s.shape[0] for s in sequences]))
+    return GPDM(
+        latent=jnp.asarray(_initial_latent(Yn, latent_dim), dtype),
+        kernel=rbf_bias_kernel(beta=1.0, gamma=1.0, beta0=1e-2, noise=1e-2, dtype=dtype),
+        dynamics=linear_rbf_kernel(dtype=dtype),
+        log_w=jnp.zeros(Y.shape[1], dtype),
+        data=jnp.asarray(Yn, dtype),
+        mean=jnp.asarray(mean, dtype),
+        scale=jnp.asarray(std, dtype),
+        sequence_starts=starts,
+    )
+
+
+def predict(model, Z: Float[Array, "m q"]) -> tuple[Float[Array, "m d"], Float[Array, " m"]]:
+    """GP predictive mean (in pose units) and variance at latent points (000 eqs. 23-26).
+
+    ``mu(z) = mean + scale * (k(z, Z) K^-1 Y)``; ``var(z) = k(z, z) - k(z, Z) K^-1 k(Z, z)``
+    (the per-dimension variance in standardised units; add ``kernel.noise`` for a new pose).
+    For a GPDM, ``Y`` and the output are divided by ``W``.
+    """
+    train = model.training_latent()
+    L = safe_cholesky(model.kernel.gram(train))
+    k = model.kernel(Z, train)  # (m, n)
+    Y = model.data * jnp.exp(model.log_w) if isinstance(model, GPDM) else model.data
+    mean = k @ jax.scipy.linalg.cho_solve((L, True), Y)
+    if isinstance(model, GPDM):
+        mean = mean / jnp.exp(model.log_w)
+    v = jax.scipy.linalg.solve_triangular(L, k.T, lower=True)
+    variance = model.kernel.diag(Z) - jnp.sum(v * v, axis=0)
+    return model.mean + model.scale * mean, jnp.maximum(variance, 0.0)

@@ -1,0 +1,155 @@
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from helpers import finite_difference_check
+from jaxtrack.body import forward_kinematics
+from jaxtrack.data import generate_motion
+from jaxtrack.manifold import (
+    fit_model,
+    fit_pca,
+    gaussian_log_marginal,
+    make_bc_gplvm,
+    make_gpdm,
+    make_gplvm,
+    predict,
+)
+
+
+@pytest.fixture(scope="module")
+def walk_jog():
+    """Joint angles (no global position or orientation) of a synthetic walk and jog."""
+    walk = generate_motion("walk", "S1", num_frames=120, fps=30.0, key=jax.random.key(0), dtype=jnp.float64)
+    jog = generate_motion("jog", "S1", num_frames=80, fps=30.0, key=jax.random.key(1), dtype=jnp.float64)
+    return walk, jog
+
+
+def numpy_objective(Z, Y, beta, gamma, beta0, noise):
+    d2 = ((Z[:, None] - Z[None]) ** 2).sum(-1)
+    K = beta * np.exp(-0.5 * gamma * d2) + beta0 + noise * np.eye(len(Z))
+    n, d = Y.shape
+    sign, logdet = np.linalg.slogdet(K)
+    return -0.5 * d * n * np.log(2 * np.pi) - 0.5 * d * logdet - 0.5 * np.trace(np.linalg.solve(K, Y @ Y.T)) - 0.5 * np.sum(Z**2)
+
+
+@pytest.fixture
+def small_model(getkey):
+    Y = np.asarray(jax.random.normal(getkey(), (12, 5)))
+    model = make_gplvm(Y, 2)
+    return eqx.tree_at(lambda m: m.latent, model, jax.random.normal(getkey(), (12, 2)))
+
+
+def test_objective_equals_dense_numpy(small_model):
+    m = small_model
+    k = m.kernel
+    expected = numpy_objective(np.asarray(m.latent), np.asarray(m.data), *(float(v) for v in (k.beta, k.gamma, k.beta0, k.noise)))
+    assert float(m.objective()) == pytest.approx(expected, rel=1e-12)
+
+
+def test_autodiff_matches_hand_derived_equations_17_18(small_model):
+    m = small_model
+    Z, Y = np.asarray(m.latent), np.asarray(m.data)
+    k = m.kernel
+    beta, gamma = float(k.beta), float(k.gamma)
+    rbf = beta * np.exp(-0.5 * gamma * ((Z[:, None] - Z[None]) ** 2).sum(-1))
+    K = rbf + float(k.beta0) + float(k.noise) * np.eye(len(Z))
+    Kinv = np.linalg.inv(K)
+    dL_dK = -0.5 * Y.shape[1] * Kinv + 0.5 * Kinv @ Y @ Y.T @ Kinv  # eq. 17
+    diff = Z[:, None] - Z[None]  # (n, n, q)
+    dK_dz = -gamma * diff * rbf[..., None]  # d k_nm / d z_n
+    grad = 2 * np.einsum("nm,nmq->nq", dL_dK, dK_dz) - Z  # eq. 18 (K symmetric), minus the prior
+    auto = jax.grad(lambda z: eqx.tree_at(lambda mm: mm.latent, m, z).objective())(m.latent)
+    np.testing.assert_allclose(auto, grad, rtol=1e-8, atol=1e-10)
+
+
+def test_gradients_match_finite_differences(walk_jog, getkey):
+    walk, jog = walk_jog
+    Y = walk.pose[:30, 6:]
+    for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2), make_gpdm([Y[:15], Y[15:]], 2)):
+        params, static = eqx.partition(model, model.trainable())
+        flat, unravel = jax.flatten_util.ravel_pytree(params)
+        f = lambda v, static=static, unravel=unravel: eqx.combine(unravel(v), static).objective()  # noqa: E731
+        finite_difference_check(f, flat, jax.random.normal(getkey(), flat.shape), rtol=1e-5, atol=1e-6)
+
+
+def test_gaussian_log_marginal_survives_duplicate_frames():
+    Z = jnp.zeros((6, 2))  # six identical latent points: K is rank one without noise
+    K = jnp.ones((6, 6))
+    value = gaussian_log_marginal(K, jnp.ones((6, 3)))
+    assert np.isfinite(float(value))
+    Y = np.repeat(np.random.default_rng(0).normal(size=(5, 4)), 3, axis=0)  # every frame three times
+    model = make_gplvm(Y, 2)
+    model = eqx.tree_at(lambda m: m.kernel.log_noise, model, jnp.asarray(-40.0))  # noise ~ 0
+    assert np.isfinite(float(model.objective()))
+    assert np.isfinite(float(make_gplvm(Y, 2).objective())) and Z.shape == (6, 2)
+
+
+def test_predictive_interpolates_and_reverts_to_the_prior(small_model):
+    m = eqx.tree_at(lambda mm: mm.kernel.log_noise, small_model, jnp.asarray(np.log(1e-8)))
+    mean, var = predict(m, m.latent)
+    np.testing.assert_allclose(mean, m.mean + m.scale * m.data, atol=1e-5)
+    assert float(var.max()) < 1e-5
+    far_mean, far_var = predict(m, 1e3 * jnp.ones((1, 2)))
+    assert float(far_var[0]) == pytest.approx(float(m.kernel.beta + m.kernel.beta0), rel=1e-2)
+    assert np.all(np.abs(np.asarray(far_mean - m.mean)) < np.abs(np.asarray(m.data)).max())
+    batched = jax.vmap(lambda z: predict(m, z[None])[0][0])(m.latent[:4])
+    np.testing.assert_allclose(batched, mean[:4], rtol=1e-10)
+
+
+def test_fitting_walk_and_jog(walk_jog):
+    """The 2-D latent space separates walk from jog; the back-constrained model keeps
+    consecutive frames close; its reconstruction of held-out frames beats PCA in mm."""
+    walk, jog = walk_jog
+    Y = np.concatenate([walk.pose[:100, 6:], jog.pose[:60, 6:]])
+    labels = np.r_[np.zeros(100), np.ones(60)]
+    bc0 = make_bc_gplvm(Y, 2)
+    bc, info = fit_model(bc0, max_steps=300)
+    assert info.objective > float(bc0.objective()) + 100
+    Z = np.asarray(bc.latent)
+    d = ((Z[:, None] - Z[None]) ** 2).sum(-1)
+    np.fill_diagonal(d, np.inf)
+    assert (labels[d.argmin(1)] == labels).mean() > 0.95
+    steps = np.linalg.norm(np.diff(Z[:100], axis=0), axis=1)
+    assert steps.max() / np.median(steps) < 5.0
+
+    # held-out frames: encode with the back-constraint, decode with the GP mean; PCA alike
+    held = np.concatenate([walk.pose[100:], jog.pose[60:]])
+    skeleton = walk.body.skeleton
+
+    def joints(angles):
+        full = np.concatenate([np.zeros((len(angles), 6)), angles], axis=1)
+        return np.asarray(forward_kinematics(skeleton, jnp.asarray(full)))
+
+    truth = joints(held[:, 6:])
+    gp_mean, _ = predict(bc, bc.encode(jnp.asarray(held[:, 6:])))
+    linear = fit_pca(Y, 2)
+    pca_rec = np.asarray(linear.decode(linear.encode(jnp.asarray(held[:, 6:]))))
+    gp_mm = 1000 * np.linalg.norm(joints(np.asarray(gp_mean)) - truth, axis=-1).mean()
+    pca_mm = 1000 * np.linalg.norm(joints(pca_rec) - truth, axis=-1).mean()
+    print(f"held-out reconstruction: BC-GPLVM {gp_mm:.1f} mm, PCA {pca_mm:.1f} mm")
+    assert gp_mm < pca_mm
+
+
+def test_gpdm_respects_sequence_boundaries(walk_jog):
+    walk, jog = walk_jog
+    model = make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 2)
+    ins, outs, firsts = model._transitions()
+    assert 19 not in ins and list(firsts) == [0, 20] and len(ins) == 19 + 9
+    fitted, info = fit_model(model, max_steps=100)
+    assert info.objective > float(model.objective())
+
+
+def test_bad_training_data():
+    Y = np.random.default_rng(0).normal(size=(20, 4))
+    with pytest.raises(ValueError, match="non-finite value at frame 3, dimension 1"):
+        make_gplvm(np.where(np.arange(80).reshape(20, 4) == 13, np.nan, Y), 2)
+    with pytest.raises(ValueError, match="constant"):
+        make_gplvm(np.ones((20, 4)), 2)
+    with pytest.raises(ValueError, match="too few"):
+        make_gplvm(Y[:3], 2)
+    with pytest.raises(ValueError, match="larger than the data dimension"):
+        make_bc_gplvm(Y, 5)
+    with pytest.raises(ValueError, match=r"one or more \(T, D\) sequences"):
+        make_gpdm([Y[None]], 2)
