@@ -50,6 +50,56 @@ def _convert(args) -> int:
     return 0
 
 
+def _fit(args) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # GP training in float64
+    import numpy as np
+
+    from .io import load_sequence
+    from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, save_model
+
+    sequences, names = [], []
+    for path in args.motion:
+        seq = load_sequence(path)
+        if seq.pose is None:
+            raise ValueError(f"{path}: has no 'pose' key (make one with 'jaxtrack convert')")
+        layout = [str(n) for n in seq.pose_layout]
+        # The manifold models joint angles only, not the global position and orientation.
+        keep = [i for i, n in enumerate(layout) if not n.startswith("root_")]
+        sequences.append(seq.pose[:, keep])
+        names.append(os.path.basename(path))
+    layouts = {len(s[0]) for s in sequences}
+    if len(layouts) != 1:
+        raise ValueError("the motion files have different pose layouts")
+    Y = np.concatenate(sequences)
+    starts = tuple(int(v) for v in np.cumsum([0] + [len(s) for s in sequences]))
+    if args.model == "gplvm":
+        model = make_gplvm(Y, args.latent_dim)
+    elif args.model == "bc-gplvm":
+        model = make_bc_gplvm(Y, args.latent_dim)
+    else:
+        model = make_gpdm(sequences, args.latent_dim)
+    fitted, info = fit_model(model, max_steps=args.steps, progress=True)
+    kept_layout = [n for n in layout if not n.startswith("root_")]
+    save_model(args.out, fitted, sequence_starts=starts, extra={"pose_layout": kept_layout, "sequences": names})
+    print(f"wrote {args.out}: {type(fitted).__name__}, {Y.shape[0]} frames, objective {info.objective:.6g} after {info.steps} steps")
+    return 0
+
+
+def _plot_latent(args) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # models are saved in float64
+    from .manifold import load_model, plot_latent
+
+    model, header = load_model(args.model)
+    out = args.out or os.path.splitext(args.model)[0] + "_latent.png"
+    plot_latent(model, out, sequence_starts=header["sequence_starts"], labels=header["extra"].get("sequences"))
+    print(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -80,6 +130,19 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--mapping", help="JSON file: HumanEva joint -> source joint name(s) (CMU and Bandai are built in)")
     convert.add_argument("--seed", type=int, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
     convert.set_defaults(run=_convert)
+
+    fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
+    fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
+    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "gpdm"), default="bc-gplvm")
+    fit.add_argument("--latent-dim", type=int, default=2)
+    fit.add_argument("--steps", type=int, default=500, help="L-BFGS iterations at most (default: %(default)s)")
+    fit.add_argument("--out", required=True, help="output model file (e.g. model.eqx)")
+    fit.set_defaults(run=_fit)
+
+    plot = sub.add_parser("plot-latent", help="draw a fitted model's latent space over its predictive variance")
+    plot.add_argument("model", help="a model file written by 'jaxtrack fit'")
+    plot.add_argument("--out", help="output PNG (default: MODEL_latent.png)")
+    plot.set_defaults(run=_plot_latent)
     return parser
 
 

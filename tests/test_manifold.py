@@ -153,3 +153,62 @@ def test_bad_training_data():
         make_bc_gplvm(Y, 5)
     with pytest.raises(ValueError, match=r"one or more \(T, D\) sequences"):
         make_gpdm([Y[None]], 2)
+
+
+def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
+    from jaxtrack.manifold import ModelFileError, load_model, save_model
+
+    walk, jog = walk_jog
+    for model in (make_gplvm(walk.pose[:30, 6:], 2), make_bc_gplvm(walk.pose[:30, 6:], 2), make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 3)):
+        path = tmp_path / f"{type(model).__name__}.eqx"
+        save_model(path, model, extra={"note": "test"})
+        back, header = load_model(path)
+        assert type(back) is type(model) and header["extra"] == {"note": "test"}
+        assert float(back.objective()) == pytest.approx(float(model.objective()), rel=1e-12)
+        z = jnp.zeros((1, model.training_latent().shape[1]))
+        np.testing.assert_allclose(predict(back, z)[0], predict(model, z)[0])
+    with pytest.raises(ModelFileError, match="holds a GPDM, but a BCGPLVM is needed"):
+        load_model(tmp_path / "GPDM.eqx", expected_class="BCGPLVM")
+    text = (tmp_path / "GPLVM.eqx").read_bytes().replace(b'"version": 1', b'"version": 9', 1)
+    (tmp_path / "v9.eqx").write_bytes(text)
+    with pytest.raises(ModelFileError, match="format version 9"):
+        load_model(tmp_path / "v9.eqx")
+    (tmp_path / "junk.eqx").write_bytes(b"\x00\x01garbage")
+    with pytest.raises(ModelFileError, match="not a jaxtrack model file"):
+        load_model(tmp_path / "junk.eqx")
+
+
+def test_inverse_mapping(walk_jog):
+    from jaxtrack.manifold import encode
+
+    walk, _ = walk_jog
+    Y = walk.pose[:60, 6:]
+    gplvm, _ = fit_model(make_gplvm(Y, 2), max_steps=150)
+    # Training poses map back (near) to their own latent points, by the optimisation of 003 eq. 5.
+    Z = encode(gplvm, jnp.asarray(Y[::10]))
+    recon, _ = predict(gplvm, Z)
+    assert float(jnp.abs(recon - Y[::10]).max()) < 0.05
+    bc = make_bc_gplvm(Y, 2)
+    np.testing.assert_allclose(encode(bc, jnp.asarray(Y)), bc.latent, atol=1e-10)
+    with pytest.raises(ValueError, match=r"poses must be \(m, 26\)"):
+        encode(bc, jnp.zeros((2, 5)))
+
+
+def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
+    import imageio.v3 as iio
+
+    from jaxtrack.cli import main
+    from jaxtrack.io import Sequence, save_sequence
+
+    walk, jog = walk_jog
+    layout = np.array(walk.body.skeleton.pose_layout)
+    for name, m in (("walk", walk), ("jog", jog)):
+        save_sequence(tmp_path / f"{name}.npz", Sequence.create(fps=30.0, pose=m.pose[:40], pose_layout=layout))
+    out = tmp_path / "model.eqx"
+    assert main(["fit", str(tmp_path / "walk.npz"), str(tmp_path / "jog.npz"), "--model", "gpdm", "--latent-dim", "2", "--steps", "50", "--out", str(out)]) == 0
+    assert main(["plot-latent", str(out)]) == 0
+    image = iio.imread(tmp_path / "model_latent.png")
+    assert image.shape[0] > 200
+    no_pose = tmp_path / "joints.npz"
+    np.savez(no_pose, fps=30.0, joints3d=np.zeros((3, 15, 3)))
+    assert main(["fit", str(no_pose), "--out", str(out)]) == 2

@@ -18,3 +18,9 @@ from ._models import make_gpdm as make_gpdm
 from ._models import make_gplvm as make_gplvm
 from ._models import pca as pca
 from ._models import predict as predict
+from ._inverse import encode as encode
+from ._plot import plot_latent as plot_latent
+from ._serialise import ModelFileError as ModelFileError
+from ._serialise import load_model as load_model
+from ._serialise import read_header as read_header
+from ._serialise import save_model as save_model
