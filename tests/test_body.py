@@ -127,3 +127,15 @@ def test_body_capsules():
     np.testing.assert_allclose(end[head], [0, 0, 0.50 + 1.05 * 0.22])
     with pytest.raises(ValueError, match="positive"):
         humaneva_body(radius_scale=0.0)
+
+
+def test_check_poses_names_the_bad_entry(skeleton):
+    from jaxtrack.body import check_poses
+
+    poses = np.zeros((3, 32))
+    assert check_poses(skeleton, poses).shape == (3, 32)
+    poses[1, skeleton.dof_index("lknee_flex")] = np.nan
+    with pytest.raises(ValueError, match=r"index \(1, 24\) \(pose entry 'lknee_flex'\)"):
+        check_poses(skeleton, poses)
+    with pytest.raises(ValueError, match="32 numbers per pose"):
+        check_poses(skeleton, np.zeros((3, 30)))

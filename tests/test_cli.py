@@ -1,5 +1,6 @@
 import imageio.v3 as iio
 import numpy as np
+import pytest
 
 from helpers import small_scene
 from jaxtrack._demo import run_demo
@@ -30,6 +31,7 @@ def test_render_reports_bad_files(tmp_path, capsys):
     assert "neither silhouettes nor images" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_demo_end_to_end(tmp_path):
     report = run_demo(str(tmp_path / "demo"), num_frames=6, particles=64, refine_frames=1, verbose=False)
     assert load_sequence(report.scene_path).silhouettes.shape == (4, 6, 60, 80)

@@ -92,3 +92,13 @@ def test_camera_behind_the_body_is_refused():
     rig = make_rig([[[50.0, 0, 20], [0, 50, 15], [0, 0, 1]]], R[None], t[None], [(40, 30)])
     with pytest.raises(ValueError, match="camera 'cam0' is behind the body"):
         build_scene(jax.random.key(0), motion, rig)
+
+
+def test_scene_refuses_nan_poses():
+    import dataclasses
+
+    motion = generate_motion("walk", "S1", num_frames=4)
+    pose = motion.pose.copy()
+    pose[2, 10] = np.inf
+    with pytest.raises(ValueError, match=r"motion poses contain a non-finite value at index \(2, 10\)"):
+        build_scene(jax.random.key(0), dataclasses.replace(motion, pose=pose), default_rig(40, 30))

@@ -10,6 +10,7 @@ from ._skeleton import HUMANEVA_PARENTS as HUMANEVA_PARENTS
 from ._skeleton import HUMANEVA_PART_GROUPS as HUMANEVA_PART_GROUPS
 from ._skeleton import Skeleton as Skeleton
 from ._skeleton import check_joint_names as check_joint_names
+from ._skeleton import check_poses as check_poses
 from ._skeleton import humaneva_offsets as humaneva_offsets
 from ._skeleton import humaneva_skeleton as humaneva_skeleton
 from ._skeleton import part_group_indices as part_group_indices

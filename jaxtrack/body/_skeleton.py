@@ -284,3 +284,22 @@ def check_joint_names(names: Sequence[str], expected: Sequence[str], what: str) 
             f"{what}: joint set differs from the skeleton's (missing {missing}, unexpected {extra}, "
             f"or a different order)"
         )
+
+
+def check_poses(skeleton: Skeleton, poses, name: str = "poses") -> np.ndarray:
+    """Validate pose vectors (..., D) before jitting; returns them as a float NumPy array.
+
+    Raises:
+        ValueError: on a wrong last dimension, or a NaN/inf entry (naming its index and the
+            pose entry, e.g. ``lknee_flex``).
+    """
+    arr = np.asarray(poses)
+    if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64) if not np.issubdtype(arr.dtype, np.floating) else arr
+    if arr.ndim < 1 or arr.shape[-1] != skeleton.num_dofs:
+        raise ValueError(f"{name} must have {skeleton.num_dofs} numbers per pose (layout {skeleton.pose_layout[:4]}...), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise ValueError(f"{name} contain a non-finite value at index {bad} (pose entry {skeleton.pose_layout[bad[-1]]!r})")
+    return arr

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..body import check_poses
 from ..camera import CameraRig, check_in_front, image_shape, pixel_grid, project_points
 from ..io import Sequence
 from ..render import ProjectedCapsules, hard_from_capsules, project_capsules
@@ -191,6 +192,7 @@ def build_scene(
         ValueError: if a camera is behind the body in some frame, or the body leaves a view
             entirely (empty silhouette).
     """
+    check_poses(motion.body.skeleton, motion.pose, "motion poses")
     check_in_front(rig, motion.joints3d, what="the body")
     height, width = image_shape(rig)
     body = motion.body

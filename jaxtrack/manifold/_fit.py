@@ -7,7 +7,6 @@ from typing import NamedTuple
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 import optax
 
@@ -18,6 +17,32 @@ class FitInfo(NamedTuple):
     objective: float
     steps: int
     trace: np.ndarray
+
+
+_OPTIMISER = optax.lbfgs()
+
+
+def _loss(params, static):
+    return -eqx.combine(params, static).objective()
+
+
+@eqx.filter_jit
+def _run_chunk(params, state, static, chunk: int):
+    """``chunk`` L-BFGS steps in one ``lax.scan``; module level, so repeated fits of the same
+    model class and shapes reuse the compilation (data and hyperparameters are traced)."""
+
+    def loss(p):
+        return _loss(p, static)
+
+    value_and_grad = optax.value_and_grad_from_state(loss)
+
+    def step(carry, _):
+        p, state = carry
+        value, grad = value_and_grad(p, state=state)
+        updates, state = _OPTIMISER.update(grad, state, p, value=value, grad=grad, value_fn=loss)
+        return (optax.apply_updates(p, updates), state), value
+
+    return jax.lax.scan(step, (params, state), None, length=chunk)
 
 
 def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float = 1e-7, progress: bool = False):
@@ -33,25 +58,7 @@ def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float 
         float32 the Cholesky's adaptive jitter keeps the objective finite.
     """
     params, static = eqx.partition(model, model.trainable())
-
-    def loss(p):
-        return -eqx.combine(p, static).objective()
-
-    optimiser = optax.lbfgs()
-    value_and_grad = optax.value_and_grad_from_state(loss)
-
-    @eqx.filter_jit
-    def run(p, state):
-        def step(carry, _):
-            p, state = carry
-            value, grad = value_and_grad(p, state=state)
-            updates, state = optimiser.update(grad, state, p, value=value, grad=grad, value_fn=loss)
-            p = optax.apply_updates(p, updates)
-            return (p, state), value
-
-        return jax.lax.scan(step, (p, state), None, length=chunk)
-
-    state = optimiser.init(params)
+    state = _OPTIMISER.init(params)
     trace, steps = [], 0
     bar = None
     if progress:
@@ -60,7 +67,7 @@ def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float 
         bar = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
     previous = None
     while steps < max_steps:
-        (params, state), values = run(params, state)
+        (params, state), values = _run_chunk(params, state, static, chunk)
         values = np.asarray(values)
         trace.append(-values)
         steps += chunk
