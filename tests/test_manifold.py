@@ -212,3 +212,48 @@ def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
     no_pose = tmp_path / "joints.npz"
     np.savez(no_pose, fps=30.0, joints3d=np.zeros((3, 15, 3)))
     assert main(["fit", str(no_pose), "--out", str(out)]) == 2
+
+
+@pytest.mark.slow
+def test_cmu_walk_and_jog_manifold(shared_data):
+    """Real motion (CMU subject 35, GPmat's 30 Hz channels): fit a BC-GPLVM to walk 35_01 and
+    jog 35_17; score held-out walk 35_29 against PCA (about 17 mm vs 38 mm)."""
+    import os
+
+    from scipy.io import loadmat
+
+    from jaxtrack.body import inverse_kinematics, retarget_positions
+    from jaxtrack.io import motion_from_amc_values, read_asf
+
+    cmu = os.path.join(shared_data, "cmu35")
+    data = loadmat(os.path.join(cmu, "cmu35WalkJog.mat"))
+    asf = read_asf(os.path.join(cmu, "35.asf"))
+
+    def angles(rows, seed):
+        motion = motion_from_amc_values(asf, rows, fps=30.0)
+        result = inverse_kinematics(retarget_positions(motion.positions, motion.joint_names), key=jax.random.key(seed))
+        return np.asarray(result.pose), result.skeleton
+
+    walk, skeleton = angles(data["Y"][data["lbls"][:, 0] == 1], 0)
+    jog, _ = angles(data["Y"][data["lbls"][:, 16] == 1], 1)
+    held, _ = angles(data["Ytest"][data["lblstest"][:, 1] == 1][:40], 2)
+    Y = np.concatenate([walk[:, 6:], jog[:, 6:]])
+    labels = np.r_[np.zeros(len(walk)), np.ones(len(jog))]
+    model, _ = fit_model(make_bc_gplvm(Y, 2), max_steps=300)
+    Z = np.asarray(model.latent)
+    d = ((Z[:, None] - Z[None]) ** 2).sum(-1)
+    np.fill_diagonal(d, np.inf)
+    assert (labels[d.argmin(1)] == labels).mean() > 0.95
+    steps = np.linalg.norm(np.diff(Z[: len(walk)], axis=0), axis=1)
+    assert steps.max() / np.median(steps) < 5.0
+
+    def joints(a):
+        return np.asarray(forward_kinematics(skeleton, jnp.asarray(np.concatenate([np.zeros((len(a), 6)), a], 1))))
+
+    truth = joints(held[:, 6:])
+    gp_mean, _ = predict(model, model.encode(jnp.asarray(held[:, 6:])))
+    linear = fit_pca(Y, 2)
+    gp_mm = 1000 * np.linalg.norm(joints(np.asarray(gp_mean)) - truth, axis=-1).mean()
+    pca_mm = 1000 * np.linalg.norm(joints(np.asarray(linear.decode(linear.encode(jnp.asarray(held[:, 6:]))))) - truth, axis=-1).mean()
+    print(f"CMU held-out walk 35_29: BC-GPLVM {gp_mm:.1f} mm, PCA {pca_mm:.1f} mm")
+    assert gp_mm < pca_mm
