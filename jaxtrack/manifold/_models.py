@@ -68,6 +68,11 @@ def pca(Y: Float[Array, "n d"], latent_dim: int) -> tuple[Float[Array, "n q"], F
     return U[:, :latent_dim] * S[:latent_dim] * signs, Vt[:latent_dim] * signs[:, None]
 
 
+def map_objective(kernel: RBFBiasKernel, Z: Float[Array, "n q"], Y: Float[Array, "n d"]) -> Float[Array, ""]:
+    """``ln p(Y|Z) - 1/2 ||Z||_F^2`` (000 eqs. 15-16), shared by the GPLVM and the BC-GPLVM."""
+    return gaussian_log_marginal(kernel.gram(Z), Y) - 0.5 * jnp.sum(Z * Z)
+
+
 class PCAModel(eqx.Module):
     """Linear baseline: ``y = mean + scale * (z @ components)``."""
 
@@ -116,8 +121,7 @@ class GPLVM(eqx.Module):
 
     def objective(self):
         """``ln p(Y|Z) - 1/2 ||Z||_F^2`` (000 eq. 16), to be maximised."""
-        Z = self.latent
-        return gaussian_log_marginal(self.kernel.gram(Z), self.data) - 0.5 * jnp.sum(Z * Z)
+        return map_objective(self.kernel, self.latent, self.data)
 
     def trainable(self):
         """Filter spec: True for the leaves fitting changes."""
@@ -159,8 +163,8 @@ class BCGPLVM(eqx.Module):
         return self.latent
 
     def objective(self):
-        Z = self.latent
-        return gaussian_log_marginal(self.kernel.gram(Z), self.data) - 0.5 * jnp.sum(Z * Z)
+        """000 eq. 16 with ``Z = g(Y)``, to be maximised over the back-constraint."""
+        return map_objective(self.kernel, self.latent, self.data)
 
     def encode(self, poses: Float[Array, "m d"]) -> Float[Array, "m q"]:
         """Poses (in pose units) -> latent points through the back-constraint."""
