@@ -8,9 +8,12 @@ import sys
 
 
 def _demo(args) -> int:
-    from ._demo import run_demo
+    from ._demo import run_demo, run_likelihood_demo
 
-    run_demo(args.out, seed=args.seed, num_frames=args.frames, particles=args.particles)
+    if args.likelihood:
+        run_likelihood_demo(args.out, seed=args.seed, num_frames=args.frames or 60, particles=args.budget or 500)
+    else:
+        run_demo(args.out, seed=args.seed, frames=args.frames or 40, budget=args.budget or 300, runs=args.runs)
     return 0
 
 
@@ -57,7 +60,7 @@ def _fit(args) -> int:
     import numpy as np
 
     from .io import load_sequence
-    from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, save_model
+    from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
 
     sequences, names = [], []
     for path in args.motion:
@@ -78,6 +81,10 @@ def _fit(args) -> int:
         model = make_gplvm(Y, args.latent_dim)
     elif args.model == "bc-gplvm":
         model = make_bc_gplvm(Y, args.latent_dim)
+    elif args.model == "bc-gplvm-mlp":
+        model = make_bc_gplvm(Y, args.latent_dim, back_constraint="mlp", key=jax.random.key(args.seed))
+    elif args.model == "sparse-gplvm":
+        model = make_sparse_gplvm(Y, args.latent_dim, num_inducing=min(args.inducing, Y.shape[0]))
     else:
         model = make_gpdm(sequences, args.latent_dim)
     fitted, info = fit_model(model, max_steps=args.steps, progress=True)
@@ -100,6 +107,54 @@ def _plot_latent(args) -> int:
     return 0
 
 
+def _experiment(args) -> int:
+    from ._experiment import ExperimentConfig, load_sequences, results_table, run_experiment
+
+    config = ExperimentConfig(
+        methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
+        fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
+    )
+    train, train_names = load_sequences(args.train)
+    validation, validation_names = load_sequences(args.validation)
+    test, test_names = load_sequences(args.test)
+    names = {"train": train_names, "validation": validation_names, "test": test_names}
+    results = run_experiment(train, validation, test, config, out_dir=args.out, names=names, animations=not args.no_animation)
+    print()
+    print(results_table(results))
+    print(f"wrote {os.path.join(args.out, 'results.json')}, table.md, error_curves.png")
+    return 0
+
+
+def _track(args) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # the model is float64; the tracker casts to float32
+    import numpy as np
+
+    from ._experiment import track_sequence
+    from .evaluation import mean_joint_error_mm
+    from .io import load_sequence, save_sequence
+    from .manifold import load_model
+
+    sequence = load_sequence(args.test)
+    validation = load_sequence(args.validation)
+    model, header = load_model(args.model, expected_class="BCGPLVM" if args.method == "mrpf" else None)
+    poses, joints, info = track_sequence(
+        sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
+        likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test),
+    )
+    if sequence.joints3d is not None:
+        print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
+    out = sequence.replace(pose=poses, joints3d=joints)
+    save_sequence(args.out, out)
+    print(f"wrote {args.out}: estimated pose {poses.shape} and joints3d {joints.shape}; mean ESS {float(np.mean(info.ess)):.1f}")
+    return 0
+
+
+_METHODS = ("sir", "apf", "mrpf", "gpapf", "latentpf")
+_SCALE = 100.0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -109,8 +164,11 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run the pipeline end to end on the embedded synthetic default")
     demo.add_argument("--out", default="jaxtrack_demo", help="output folder (default: %(default)s)")
     demo.add_argument("--seed", type=int, default=0, help="PRNG seed (default: %(default)s)")
-    demo.add_argument("--frames", type=int, default=60, help="frames to synthesise (default: %(default)s)")
-    demo.add_argument("--particles", type=int, default=500, help="poses scored per frame (default: %(default)s)")
+    demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --likelihood)")
+    demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --likelihood)")
+    demo.add_argument("--runs", type=int, default=2, help="runs per method (default: %(default)s)")
+    demo.add_argument("--likelihood", action="store_true",
+                      help="instead: score true against perturbed poses and refine poses by gradient descent")
     demo.set_defaults(run=_demo)
 
     render = sub.add_parser("render", help="write a contact sheet (PNG) and an animation (GIF) of a sequence file")
@@ -133,11 +191,42 @@ def build_parser() -> argparse.ArgumentParser:
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
-    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "gpdm"), default="bc-gplvm")
+    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm"), default="bc-gplvm")
+    fit.add_argument("--inducing", type=int, default=150, help="inducing points of sparse-gplvm (default: %(default)s)")
+    fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
     fit.add_argument("--latent-dim", type=int, default=2)
     fit.add_argument("--steps", type=int, default=500, help="L-BFGS iterations at most (default: %(default)s)")
     fit.add_argument("--out", required=True, help="output model file (e.g. model.eqx)")
     fit.set_defaults(run=_fit)
+
+    experiment = sub.add_parser("experiment", help="compare trackers the way paper 000 does (table, curves, animations)")
+    experiment.add_argument("--train", nargs="+", required=True, help="training sequence files (pose or joints3d)")
+    experiment.add_argument("--validation", nargs="+", required=True, help="validation sequence file(s) for the noise scales")
+    experiment.add_argument("--test", nargs="+", required=True, help="test sequence files with silhouettes, cameras and ground truth")
+    experiment.add_argument("--methods", nargs="+", default=list(_METHODS), choices=_METHODS)
+    experiment.add_argument("--budget", type=int, default=500, help="likelihood evaluations per frame (default: %(default)s)")
+    experiment.add_argument("--layers", type=int, default=5, help="annealing layers of APF and GPAPF (default: %(default)s)")
+    experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
+    experiment.add_argument("--latent-dim", type=int, default=2)
+    experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
+    experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
+    experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
+    experiment.add_argument("--seed", type=int, default=0)
+    experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
+    experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
+    experiment.set_defaults(run=_experiment)
+
+    track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
+    track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
+    track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (bc-gplvm for mrpf)")
+    track.add_argument("--validation", required=True, help="validation sequence file for the noise scales (000 sec. 5.2)")
+    track.add_argument("--method", choices=_METHODS, default="mrpf")
+    track.add_argument("--budget", type=int, default=500)
+    track.add_argument("--layers", type=int, default=5)
+    track.add_argument("--likelihood-scale", type=float, default=_SCALE)
+    track.add_argument("--seed", type=int, default=0)
+    track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
+    track.set_defaults(run=_track)
 
     plot = sub.add_parser("plot-latent", help="draw a fitted model's latent space over its predictive variance")
     plot.add_argument("model", help="a model file written by 'jaxtrack fit'")

@@ -1,9 +1,11 @@
+from pathlib import Path
+
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
 from helpers import small_scene
-from jaxtrack._demo import run_demo
+from jaxtrack._demo import run_likelihood_demo
 from jaxtrack.cli import main
 from jaxtrack.io import load_sequence, save_sequence
 
@@ -33,9 +35,21 @@ def test_render_reports_bad_files(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_demo_end_to_end(tmp_path):
-    report = run_demo(str(tmp_path / "demo"), num_frames=6, particles=64, refine_frames=1, verbose=False)
+    report = run_likelihood_demo(str(tmp_path / "demo"), num_frames=6, particles=64, refine_frames=1, verbose=False)
     assert load_sequence(report.scene_path).silhouettes.shape == (4, 6, 60, 80)
     assert iio.imread(report.contact_sheet_path).ndim == 3
     assert report.window is not None and report.window[0] < 60
     assert report.truth_wins_fraction >= 5 / 6
     assert report.refine_error_after_mm < report.refine_error_before_mm
+
+
+@pytest.mark.slow
+def test_experiment_demo(tmp_path):
+    from jaxtrack._demo import run_demo
+
+    results, paths = run_demo(str(tmp_path / "demo"), frames=8, budget=100, runs=1, verbose=False)
+    assert set(results["sequences"]) == {"S1 walk", "S2 jog"}
+    for per_method in results["sequences"].values():
+        assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf"}
+        assert all(np.isfinite(v["error_mm_mean"]) for v in per_method.values())
+    assert "| S1 walk |" in Path(paths["table"]).read_text()

@@ -56,6 +56,7 @@ def test_subjects_and_keys_change_the_motion():
         generate_motion("walk", "S9")
 
 
+@pytest.mark.slow
 def test_scene_is_deterministic_and_noisy():
     motion = generate_motion("walk", "S1", num_frames=6, fps=30.0)
     rig = default_rig(40, 30)

@@ -129,6 +129,7 @@ def test_jit_vmap_and_no_jit_agree(scene, getkey):
     np.testing.assert_allclose(jitted, looped, rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_camera_behind_body_gives_minus_infinity(scene):
     motion, rig, seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, silhouettes=observed)

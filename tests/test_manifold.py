@@ -132,6 +132,7 @@ def test_fitting_walk_and_jog(walk_jog):
     assert gp_mm < pca_mm
 
 
+@pytest.mark.slow
 def test_gpdm_respects_sequence_boundaries(walk_jog):
     walk, jog = walk_jog
     model = make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 2)
@@ -194,6 +195,7 @@ def test_inverse_mapping(walk_jog):
         encode(bc, jnp.zeros((2, 5)))
 
 
+@pytest.mark.slow
 def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
     import imageio.v3 as iio
 

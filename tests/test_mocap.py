@@ -223,6 +223,7 @@ def test_ik_and_mapping_errors():
         retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"], {n: "zz" for n in __import__("jaxtrack").body.HUMANEVA_JOINTS})
 
 
+@pytest.mark.slow
 def test_convert_cli_on_joint_arrays(tmp_path, capsys):
     motion = generate_motion("walk", "S1", num_frames=30, fps=60.0, dtype=jnp.float64)
     source = tmp_path / "joints.npz"

@@ -223,6 +223,21 @@ def build_scene(
     if np.any(area == 0):
         c, t = np.argwhere(area == 0)[0]
         raise ValueError(f"the body leaves the image of camera {rig.names[c]!r} at frame {t}: empty silhouette")
+    return motion_sequence(motion).replace(
+        camera_K=np.asarray(rig.K, np.float64),
+        camera_R=np.asarray(rig.R, np.float64),
+        camera_t=np.asarray(rig.t, np.float64),
+        camera_dist=np.asarray(rig.dist, np.float64),
+        image_size=np.array(rig.image_size, np.int64),
+        camera_names=np.array(rig.names),
+        silhouettes=silhouettes,
+    )
+
+
+def motion_sequence(motion: SyntheticMotion) -> Sequence:
+    """A motion as a ``Sequence`` without cameras or images: fps, joints, poses and the body
+    (training and validation data for the manifold and the dynamics)."""
+    skeleton = motion.body.skeleton
     return Sequence.create(
         fps=motion.fps,
         joint_names=np.array(skeleton.joint_names),
@@ -231,12 +246,5 @@ def build_scene(
         pose=np.asarray(motion.pose, np.float64),
         pose_layout=np.array(skeleton.pose_layout),
         skeleton_offsets=np.asarray(skeleton.offsets, np.float64),
-        capsule_radii=np.asarray(body.radii, np.float64),
-        camera_K=np.asarray(rig.K, np.float64),
-        camera_R=np.asarray(rig.R, np.float64),
-        camera_t=np.asarray(rig.t, np.float64),
-        camera_dist=np.asarray(rig.dist, np.float64),
-        image_size=np.array(rig.image_size, np.int64),
-        camera_names=np.array(rig.names),
-        silhouettes=silhouettes,
+        capsule_radii=np.asarray(motion.body.radii, np.float64),
     )

@@ -6,13 +6,15 @@ from collections.abc import Mapping, Sequence
 
 import jax.numpy as jnp
 
-from .._custom_types import Array, Float
+from .._custom_types import Array, ArrayLike, Float
 
 
 def joint_errors_mm(
-    estimate: Float[Array, "frames joints 3"], truth: Float[Array, "frames joints 3"]
+    estimate: Float[ArrayLike, "frames joints 3"], truth: Float[ArrayLike, "frames joints 3"]
 ) -> Float[Array, "frames joints"]:
-    """Euclidean distance between estimated and true joint positions (metres in), millimetres out."""
+    """Euclidean distance between estimated and true joint positions (metres in; JAX or NumPy
+    arrays), millimetres out."""
+    estimate, truth = jnp.asarray(estimate), jnp.asarray(truth)
     if estimate.shape != truth.shape:
         raise ValueError(f"estimate {estimate.shape} and truth {truth.shape} must have the same shape")
     return 1000.0 * jnp.linalg.norm(estimate - truth, axis=-1)

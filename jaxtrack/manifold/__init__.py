@@ -1,4 +1,4 @@
-"""Pose manifolds: PCA, GPLVM, back-constrained GPLVM and GPDM (../shared/METHODS.md section 3)."""
+"""Pose manifolds: PCA, GPLVM, back-constrained GPLVM (kernel or MLP), sparse GPLVM and GPDM (../shared/METHODS.md section 3)."""
 
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
@@ -11,6 +11,7 @@ from ._models import BCGPLVM as BCGPLVM
 from ._models import GPDM as GPDM
 from ._models import GPLVM as GPLVM
 from ._models import KernelBackConstraint as KernelBackConstraint
+from ._models import MLPBackConstraint as MLPBackConstraint
 from ._models import PCAModel as PCAModel
 from ._models import fit_pca as fit_pca
 from ._models import make_bc_gplvm as make_bc_gplvm
@@ -18,6 +19,10 @@ from ._models import make_gpdm as make_gpdm
 from ._models import make_gplvm as make_gplvm
 from ._models import pca as pca
 from ._models import predict as predict
+from ._predictor import GPPredictor as GPPredictor
+from ._sparse import SparseGPLVM as SparseGPLVM
+from ._sparse import make_sparse_gplvm as make_sparse_gplvm
+from ._sparse import sparse_log_marginal as sparse_log_marginal
 from ._inverse import encode as encode
 from ._plot import plot_latent as plot_latent
 from ._serialise import ModelFileError as ModelFileError

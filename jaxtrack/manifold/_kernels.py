@@ -99,15 +99,19 @@ def linear_rbf_kernel(a1=1.0, a2=1.0, a3=1e-2, noise=1e-2, dtype=jnp.float64) ->
 def safe_cholesky(K: Float[Array, "n n"]) -> Float[Array, "n n"]:
     """Cholesky factor with adaptive jitter: the first rung of ``JITTER_LADDER`` (times the mean
     diagonal) that gives a finite factor. Duplicated training frames therefore do not break it.
-    Works under jit (all rungs are computed, the first finite one is selected)."""
+    Works under jit and grad: each further rung is tried inside a ``lax.cond`` only when the
+    previous factor failed, so the usual cost is one factorisation."""
     n = K.shape[0]
     scale = jnp.mean(jnp.diag(K))
     eye = jnp.eye(n, dtype=K.dtype)
-    factors = [jnp.linalg.cholesky(K + jitter * scale * eye) for jitter in JITTER_LADDER]
-    chosen = factors[-1]
-    for factor in reversed(factors[:-1]):
-        chosen = jnp.where(jnp.all(jnp.isfinite(factor)), factor, chosen)
-    return chosen
+
+    def attempt(rung: int):
+        factor = jnp.linalg.cholesky(K + JITTER_LADDER[rung] * scale * eye)
+        if rung == len(JITTER_LADDER) - 1:
+            return factor
+        return jax.lax.cond(jnp.all(jnp.isfinite(factor)), lambda: factor, lambda: attempt(rung + 1))
+
+    return attempt(0)
 
 
 def gaussian_log_marginal(K: Float[Array, "n n"], Y: Float[Array, "n d"]) -> Float[Array, ""]:

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
+from ._predictor import GPPredictor, full_gp_predictor
 from ._kernels import (
     LinearRBFKernel,
     RBFBiasKernel,
@@ -123,6 +124,10 @@ class GPLVM(eqx.Module):
         """``ln p(Y|Z) - 1/2 ||Z||_F^2`` (000 eq. 16), to be maximised."""
         return map_objective(self.kernel, self.latent, self.data)
 
+    def predictor(self) -> GPPredictor:
+        """The predictive distribution (000 eqs. 23-26), precomputed."""
+        return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
+
     def trainable(self):
         """Filter spec: True for the leaves fitting changes."""
         spec = jax.tree.map(lambda _: False, self)
@@ -145,11 +150,31 @@ class KernelBackConstraint(eqx.Module):
         K = jnp.exp(-0.5 * self.gamma_x * squared_distances(Y, self.inputs))
         return K @ self.weights + self.bias
 
+    def trainable(self):
+        spec = jax.tree.map(lambda _: False, self)
+        return eqx.tree_at(lambda b: (b.weights, b.bias), spec, (True, True))
+
+
+class MLPBackConstraint(eqx.Module):
+    """``z = y P + b + MLP(y)``: a linear map (initialised to the PCA projection) plus a tanh
+    multilayer perceptron whose last layer starts at zero, so fitting starts from PCA
+    (the multilayer-perceptron back-constraint of Lawrence and Quinonero-Candela 2006)."""
+
+    projection: Float[Array, "d q"]
+    bias: Float[Array, " q"]
+    mlp: eqx.nn.MLP
+
+    def __call__(self, Y: Float[Array, "m d"]) -> Float[Array, "m q"]:
+        return Y @ self.projection + self.bias + jax.vmap(self.mlp)(Y)
+
+    def trainable(self):
+        return jax.tree.map(eqx.is_inexact_array, self)
+
 
 class BCGPLVM(eqx.Module):
     """Back-constrained GPLVM (000 eqs. 21-22): the latent points are ``g(Y)``."""
 
-    back: KernelBackConstraint
+    back: KernelBackConstraint | MLPBackConstraint
     kernel: RBFBiasKernel
     data: Float[Array, "n d"]
     mean: Float[Array, " d"]
@@ -170,13 +195,12 @@ class BCGPLVM(eqx.Module):
         """Poses (in pose units) -> latent points through the back-constraint."""
         return self.back((poses - self.mean) / self.scale)
 
+    def predictor(self) -> GPPredictor:
+        return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
+
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
-        return eqx.tree_at(
-            lambda m: (m.back.weights, m.back.bias, m.kernel),
-            spec,
-            (True, True, jax.tree.map(lambda _: True, self.kernel)),
-        )
+        return eqx.tree_at(lambda m: (m.back, m.kernel), spec, (self.back.trainable(), jax.tree.map(lambda _: True, self.kernel)))
 
 
 class GPDM(eqx.Module):
@@ -230,6 +254,10 @@ class GPDM(eqx.Module):
         log_prior = log_prior - (self.dynamics.log_a1 + self.dynamics.log_a2 + self.dynamics.log_a3 + self.dynamics.log_noise)
         return log_lik + log_dyn + log_first + log_prior
 
+    def predictor(self) -> GPPredictor:
+        """Pose predictions; the output scales W cancel in the mean (``K^-1 Y W / W``)."""
+        return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
+
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
         return eqx.tree_at(
@@ -252,27 +280,55 @@ def make_gplvm(Y, latent_dim: int = 2, *, scale: bool = False, dtype=jnp.float64
     )
 
 
-def make_bc_gplvm(Y, latent_dim: int = 2, *, gamma_x: float | None = None, scale: bool = False, dtype=jnp.float64) -> BCGPLVM:
+BACK_CONSTRAINTS = ("kernel", "mlp")
+
+
+def make_bc_gplvm(
+    Y,
+    latent_dim: int = 2,
+    *,
+    back_constraint: str = "kernel",
+    gamma_x: float | None = None,
+    hidden: int = 32,
+    depth: int = 1,
+    key=None,
+    scale: bool = False,
+    dtype=jnp.float64,
+) -> BCGPLVM:
     """A back-constrained GPLVM whose back-constraint reproduces the PCA initialisation.
 
     Args:
-        gamma_x: inverse width of the back-constraint kernel (000 fixes it: 1e-4 in its pose
+        back_constraint: "kernel" (000 eq. 22) or "mlp" (``MLPBackConstraint``).
+        gamma_x: inverse width of the kernel back-constraint (000 fixes it: 1e-4 in its pose
             units); default ``1 / (mean squared distance between training poses)``.
+        hidden, depth: width and number of hidden layers of the MLP back-constraint.
+        key: PRNG key for the MLP's initial weights (required for "mlp").
     """
+    if back_constraint not in BACK_CONSTRAINTS:
+        raise ValueError(f"back_constraint must be one of {BACK_CONSTRAINTS}, got {back_constraint!r}")
     Y = check_training_data(Y, latent_dim)
     Yn, mean, std = standardise(Y, scale)
     Yj = jnp.asarray(Yn, dtype)
-    if gamma_x is None:
-        gamma_x = 1.0 / float(jnp.mean(squared_distances(Yj, Yj)))
-    if not gamma_x > 0:
-        raise ValueError(f"gamma_x must be positive, got {gamma_x}")
     Z0 = _initial_latent(Yn, latent_dim).astype(dtype)
-    Kx = jnp.exp(-0.5 * gamma_x * squared_distances(Yj, Yj))
-    # Least-squares weights so that g(Y) starts at the PCA latent points.
-    L = safe_cholesky(Kx + 1e-6 * jnp.eye(Kx.shape[0], dtype=dtype))
-    weights = jax.scipy.linalg.cho_solve((L, True), Z0)
+    if back_constraint == "kernel":
+        if gamma_x is None:
+            gamma_x = 1.0 / float(jnp.mean(squared_distances(Yj, Yj)))
+        if not gamma_x > 0:
+            raise ValueError(f"gamma_x must be positive, got {gamma_x}")
+        Kx = jnp.exp(-0.5 * gamma_x * squared_distances(Yj, Yj))
+        # Least-squares weights so that g(Y) starts at the PCA latent points.
+        L = safe_cholesky(Kx + 1e-6 * jnp.eye(Kx.shape[0], dtype=dtype))
+        weights = jax.scipy.linalg.cho_solve((L, True), Z0)
+        back = KernelBackConstraint(weights=weights, bias=jnp.zeros(latent_dim, dtype), inputs=Yj, gamma_x=jnp.asarray(gamma_x, dtype))
+    else:
+        if key is None:
+            raise ValueError("the MLP back-constraint needs an explicit PRNG key (key=jax.random.key(...))")
+        projection = jnp.linalg.lstsq(Yj, Z0)[0]
+        mlp = eqx.nn.MLP(Yj.shape[1], latent_dim, hidden, depth, activation=jnp.tanh, key=key, dtype=dtype)
+        mlp = eqx.tree_at(lambda m: (m.layers[-1].weight, m.layers[-1].bias), mlp, (jnp.zeros_like(mlp.layers[-1].weight), jnp.zeros_like(mlp.layers[-1].bias)))
+        back = MLPBackConstraint(projection=projection, bias=jnp.zeros(latent_dim, dtype), mlp=mlp)
     return BCGPLVM(
-        back=KernelBackConstraint(weights=weights, bias=jnp.zeros(latent_dim, dtype), inputs=Yj, gamma_x=jnp.asarray(gamma_x, dtype)),
+        back=back,
         kernel=rbf_bias_kernel(beta=float(np.mean(Yn.var(axis=0))) + 1e-3, gamma=1.0, beta0=1e-2, noise=1e-2, dtype=dtype),
         data=Yj,
         mean=jnp.asarray(mean, dtype),
@@ -309,15 +365,6 @@ def predict(model, Z: Float[Array, "m q"]) -> tuple[Float[Array, "m d"], Float[A
 
     ``mu(z) = mean + scale * (k(z, Z) K^-1 Y)``; ``var(z) = k(z, z) - k(z, Z) K^-1 k(Z, z)``
     (the per-dimension variance in standardised units; add ``kernel.noise`` for a new pose).
-    For a GPDM, ``Y`` and the output are divided by ``W``.
+    Refactorises the covariance on every call: filters use ``model.predictor()`` once instead.
     """
-    train = model.training_latent()
-    L = safe_cholesky(model.kernel.gram(train))
-    k = model.kernel(Z, train)  # (m, n)
-    Y = model.data * jnp.exp(model.log_w) if isinstance(model, GPDM) else model.data
-    mean = k @ jax.scipy.linalg.cho_solve((L, True), Y)
-    if isinstance(model, GPDM):
-        mean = mean / jnp.exp(model.log_w)
-    v = jax.scipy.linalg.solve_triangular(L, k.T, lower=True)
-    variance = model.kernel.diag(Z) - jnp.sum(v * v, axis=0)
-    return model.mean + model.scale * mean, jnp.maximum(variance, 0.0)
+    return model.predictor()(Z)

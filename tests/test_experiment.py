@@ -1,0 +1,67 @@
+"""The HumanEva-style experiment and `jaxtrack track`: inputs checked before anything runs,
+and a small end-to-end run (slow)."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from helpers import small_scene
+from jaxtrack._experiment import ExperimentConfig, check_test_sequence, run_experiment, sequence_poses, track_sequence
+from jaxtrack.data import generate_motion, motion_sequence
+
+
+@pytest.fixture(scope="module")
+def sequences():
+    motion, rig, scene = small_scene()
+    train = [motion_sequence(generate_motion(g, "S1", num_frames=30, fps=30.0, key=jax.random.key(i))) for i, g in enumerate(("walk", "jog"))]
+    validation = [motion_sequence(generate_motion("walk", "S1", num_frames=20, fps=30.0, key=jax.random.key(7)))]
+    return train, validation, [scene]
+
+
+def test_bad_experiment_inputs(sequences):
+    train, validation, test = sequences
+    with pytest.raises(ValueError, match="cannot be split into 3 equal annealing layers for APF"):
+        ExperimentConfig(budget=500, layers=3, methods=("sir", "apf"))
+    with pytest.raises(ValueError, match=r"unknown methods \['pf'\]"):
+        ExperimentConfig(methods=("pf",))
+    with pytest.raises(ValueError, match="needs silhouettes and cameras"):
+        check_test_sequence(train[0], "walk.npz")
+    with pytest.raises(ValueError, match="needs silhouettes, which the file lacks"):
+        check_test_sequence(test[0].replace(silhouettes=None), "walk.npz")
+    renamed = test[0].replace(joint_names=np.array(["root"] + [str(n) for n in test[0].joint_names[1:]]))
+    with pytest.raises(ValueError, match="joint_names"):
+        sequence_poses(renamed, "walk.npz")
+    with pytest.raises(ValueError, match="needs silhouettes and cameras"):
+        run_experiment(train, validation, train[:1], ExperimentConfig(runs=1), progress=False)
+
+
+def test_track_refuses_a_model_from_another_skeleton(sequences):
+    from jaxtrack.manifold import make_bc_gplvm
+
+    train, validation, test = sequences
+    with jax.enable_x64(True):
+        model = make_bc_gplvm(train[0].pose[:, 6:], 2)
+    header = {"extra": {"pose_layout": ["hip_a", "hip_b"] + [str(n) for n in train[0].pose_layout[8:]]}, "sequence_starts": [0, 30]}
+    with pytest.raises(ValueError, match="fitted on another skeleton"):
+        track_sequence(test[0], model, header, "mrpf", validation[0])
+
+
+@pytest.mark.slow
+def test_experiment_end_to_end(sequences, tmp_path):
+    train, validation, test = sequences
+    config = ExperimentConfig(budget=50, layers=5, runs=2, fit_steps=30, frames=6)
+    results = run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]}, progress=False)
+    saved = json.loads((tmp_path / "results.json").read_text())
+    per_method = saved["sequences"]["walk.npz"]
+    assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf"}
+    for values in per_method.values():
+        assert np.isfinite(values["error_mm_mean"]) and values["error_mm_mean"] < 400
+        assert len(values["per_frame_error_mm"]) == 6 and len(values["error_mm_per_run"]) == 2
+        assert set(values["per_group_error_mm"]) == {"torso", "head", "arms", "legs"}
+    table = (tmp_path / "table.md").read_text()
+    assert table.startswith("| Sequence | SIR | APF | MRPF | GPAPF | LatentPF |") and "walk.npz" in table
+    assert (tmp_path / "error_curves.png").stat().st_size > 1000
+    assert list(tmp_path.glob("walk_*.gif"))
+    assert results["manifold"]["class"] == "BCGPLVM"

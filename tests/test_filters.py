@@ -1,0 +1,236 @@
+"""Particle filter core: resamplers, weights, and each tracker against a reference with a known
+answer (Kalman filter, SIR)."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.filters import (
+    RESAMPLERS,
+    choose_beta,
+    effective_sample_size,
+    make_apf,
+    make_gpapf,
+    make_latent_pf,
+    make_manifold_prior,
+    make_mrpf,
+    make_sir,
+    normalise_log_weights,
+    run_filter,
+)
+from jaxtrack.filters._annealing import survival_rate
+
+
+# ----------------------------------------------------------------------------- resampling
+
+@pytest.mark.parametrize("name", sorted(RESAMPLERS))
+def test_resampler_counts_match_expected_values(name, getkey):
+    weights = np.array([0.5, 0.25, 0.125, 0.0625, 0.0625, 0.0, 0.0, 0.0])
+    log_w = jnp.log(jnp.asarray(weights))
+    n = len(weights)
+    keys = jax.random.split(getkey(), 4000)
+    indices = jax.vmap(lambda k: RESAMPLERS[name](k, log_w))(keys)
+    counts = np.stack([np.bincount(np.asarray(i), minlength=n) for i in indices])
+    assert counts.sum(1).tolist() == [n] * len(keys)
+    assert counts[:, 5:].sum() == 0  # zero weight: never selected
+    mean = counts.mean(0)
+    sem = counts.std(0) / np.sqrt(len(keys)) + 1e-9
+    assert np.all(np.abs(mean - n * weights) < 5 * sem + 1e-9), (mean, n * weights)
+    if name != "multinomial":  # low-variance schemes stay within one of N w_i
+        assert np.all(np.abs(counts - n * weights) < 1.0 + 1e-9)
+
+
+def test_degenerate_weights_are_uniform_and_finite(getkey):
+    for bad in (jnp.full(5, -jnp.inf), jnp.full(5, jnp.nan), jnp.array([jnp.nan, -jnp.inf, jnp.nan, -jnp.inf, -jnp.inf])):
+        normalised, degenerate = normalise_log_weights(bad)
+        assert bool(degenerate)
+        np.testing.assert_allclose(normalised, -np.log(5) * np.ones(5))
+        assert float(effective_sample_size(bad)) == pytest.approx(5.0)
+        for resample in RESAMPLERS.values():
+            idx = np.asarray(resample(getkey(), bad))
+            assert idx.min() >= 0 and idx.max() < 5
+    normalised, degenerate = normalise_log_weights(jnp.array([0.0, jnp.nan, -jnp.inf, 1.0]))
+    assert not bool(degenerate)
+    np.testing.assert_allclose(np.exp(normalised), [1 / (1 + np.e), 0, 0, np.e / (1 + np.e)], atol=1e-12)
+
+
+def test_choose_beta_hits_the_survival_target(getkey):
+    log_lik = -50.0 * jax.random.uniform(getkey(), (300,)) ** 2
+    beta = choose_beta(log_lik, 0.5)
+    assert 0 < float(beta) < 1
+    assert float(survival_rate(log_lik, beta)) == pytest.approx(0.5, abs=1e-3)
+    assert float(choose_beta(jnp.zeros(10), 0.5)) == 1.0  # a flat likelihood survives at beta = 1
+
+
+# ----------------------------------------------------------------------------- linear Gaussian
+
+Q = np.array([0.3, 0.2])  # random-walk standard deviations
+R = np.array([0.4, 0.5])  # observation standard deviations
+
+
+def linear_gaussian_data(key, frames=25):
+    k1, k2 = jax.random.split(key)
+    x = jnp.cumsum(Q * jax.random.normal(k1, (frames, 2)), axis=0)
+    return x, x + R * jax.random.normal(k2, (frames, 2))
+
+
+def gaussian_likelihood(poses, y):
+    return -0.5 * jnp.sum(((poses - y) / R) ** 2 + jnp.log(2 * jnp.pi * R**2), axis=1)
+
+
+def kalman(x0, ys):
+    """Exact filter means and log-evidence of the random walk x_t = x_{t-1} + N(0, Q^2), y_t = x_t + N(0, R^2)."""
+    mean, var = np.asarray(x0, np.float64), np.zeros(2)
+    means, log_evidence = [], 0.0
+    for y in np.asarray(ys):
+        var = var + Q**2
+        s = var + R**2
+        log_evidence += float(np.sum(-0.5 * ((y - mean) ** 2 / s + np.log(2 * np.pi * s))))
+        gain = var / s
+        mean, var = mean + gain * (y - mean), (1 - gain) * var
+        means.append(mean)
+    return np.array(means), log_evidence
+
+
+def test_sir_matches_kalman_filter(getkey):
+    truth, ys = linear_gaussian_data(getkey())
+    x0 = jnp.zeros(2)
+    sir = make_sir(gaussian_likelihood, Q, 4000, dtype=jnp.float64)
+    expected_means, expected_evidence = kalman(x0, ys)
+    runs = [run_filter(sir, k, x0, ys)[1] for k in jax.random.split(getkey(), 4)]
+    means = np.stack([np.asarray(r.estimate) for r in runs])
+    evidence = np.array([float(r.log_evidence.sum()) for r in runs])
+    posterior_sd = np.sqrt(np.array([0.3**2, 0.2**2]))  # loose bound on the filter sd
+    assert np.abs(means.mean(0) - expected_means).max() < 0.05 * posterior_sd.max() + 0.02
+    assert abs(evidence.mean() - expected_evidence) < max(4 * evidence.std(), 0.1)
+
+
+def test_same_key_same_result_jitted_or_not(getkey):
+    _, ys = linear_gaussian_data(getkey(), frames=3)
+    key = getkey()
+    apf = make_apf(gaussian_likelihood, Q, 20, num_layers=2, dtype=jnp.float64)
+    jitted = run_filter(apf, key, jnp.zeros(2), ys)[1]
+    with jax.disable_jit():
+        eager = run_filter(apf, key, jnp.zeros(2), ys)[1]
+    np.testing.assert_allclose(jitted.estimate, eager.estimate, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(jitted.betas, eager.betas, rtol=1e-9)
+    again = run_filter(apf, key, jnp.zeros(2), ys)[1]
+    np.testing.assert_array_equal(again.estimate, jitted.estimate)
+
+
+def test_apf_with_one_layer_and_beta_one_equals_sir(getkey):
+    _, ys = linear_gaussian_data(getkey(), frames=10)
+    key = getkey()
+    sir = make_sir(gaussian_likelihood, Q, 200, dtype=jnp.float64)
+    apf = make_apf(gaussian_likelihood, Q, 200, num_layers=1, fixed_betas=(1.0,), dtype=jnp.float64)
+    a, b = run_filter(sir, key, jnp.zeros(2), ys), run_filter(apf, key, jnp.zeros(2), ys)
+    np.testing.assert_allclose(a[1].estimate, b[1].estimate, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(a[1].log_evidence, b[1].log_evidence, rtol=1e-10)
+    np.testing.assert_allclose(a[0].particles, b[0].particles, rtol=1e-10, atol=1e-12)
+
+
+def test_apf_anneals_to_the_survival_target_and_tracks(getkey):
+    truth, ys = linear_gaussian_data(getkey(), frames=20)
+    sharp = lambda poses, y: 25.0 * gaussian_likelihood(poses, y)  # noqa: E731  a peaky likelihood
+    apf = make_apf(sharp, Q, 100, num_layers=5, dtype=jnp.float64)
+    _, info = run_filter(apf, getkey(), jnp.zeros(2), ys)
+    assert info.betas.shape == (20, 5) and np.all(np.asarray(info.betas) <= 1.0)
+    np.testing.assert_allclose(np.asarray(info.survival)[np.asarray(info.betas) < 1], 0.5, atol=0.02)
+    # the annealed estimate follows the sharp likelihood to the observations
+    assert np.abs(np.asarray(info.estimate) - np.asarray(ys)).mean() < 0.1
+
+
+def test_all_minus_infinity_weights_do_not_leak_nans(getkey):
+    _, ys = linear_gaussian_data(getkey(), frames=5)
+    impossible = lambda poses, y: jnp.full(poses.shape[0], -jnp.inf)  # noqa: E731
+    for tracker in (make_sir(impossible, Q, 20, dtype=jnp.float64), make_apf(impossible, Q, 20, num_layers=2, dtype=jnp.float64)):
+        state, info = run_filter(tracker, getkey(), jnp.zeros(2), ys)
+        for leaf in (info.estimate, info.ess, info.betas, info.survival, state.particles, state.log_weights):
+            assert not np.any(np.isnan(np.asarray(leaf)))
+        assert bool(np.all(np.asarray(info.degenerate)))
+        np.testing.assert_allclose(info.ess, 20.0)
+
+
+def test_bad_filter_arguments():
+    with pytest.raises(ValueError, match="scales must be a scalar or have shape"):
+        make_sir(gaussian_likelihood, jnp.ones((2, 2)), 10)
+    with pytest.raises(ValueError, match="num_particles must be a positive integer"):
+        make_sir(gaussian_likelihood, Q, 0)
+    with pytest.raises(ValueError, match="unknown resampler 'magic'"):
+        make_sir(gaussian_likelihood, Q, 10, resampler="magic")
+    with pytest.raises(ValueError, match="fixed_betas has 1 entries for 3 layers"):
+        make_apf(gaussian_likelihood, Q, 10, num_layers=3, fixed_betas=(1.0,))
+    sir = make_sir(gaussian_likelihood, Q, 10)
+    with pytest.raises(ValueError, match="initial_pose contains NaN"):
+        run_filter(sir, jax.random.key(0), jnp.array([0.0, jnp.nan]), jnp.zeros((3, 2)))
+    with pytest.raises(ValueError, match="at least one frame"):
+        run_filter(sir, jax.random.key(0), jnp.zeros(2), jnp.zeros((0, 2)))
+
+
+# ----------------------------------------------------------------------------- manifold trackers
+
+@pytest.fixture(scope="module")
+def walk_prior():
+    from jaxtrack.data import generate_motion
+    from jaxtrack.manifold import make_bc_gplvm
+
+    motion = generate_motion("walk", "S1", num_frames=60, fps=30.0, key=jax.random.key(5), dtype=jnp.float64)
+    poses = np.asarray(motion.pose)
+    model = make_bc_gplvm(poses[:40, 6:], 2)  # PCA-initialised, unfitted: enough to exercise the filters
+    return make_manifold_prior(model, poses.shape[1]), poses
+
+
+def pose_likelihood(poses, target):
+    """A Gaussian likelihood around a target pose (a stand-in for the silhouette likelihood)."""
+    return -0.5 * jnp.sum(((poses - target) / 0.05) ** 2, axis=1)
+
+
+def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey):
+    prior, poses = walk_prior
+    key = getkey()
+    s_xx = np.full(32, 0.02)
+    sir = make_sir(pose_likelihood, s_xx, 100, dtype=jnp.float64)
+    mrpf = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=1e8, num_particles=100, dtype=jnp.float64)
+    observations = jnp.asarray(poses[41:49])
+    a, b = run_filter(sir, key, jnp.asarray(poses[40]), observations), run_filter(mrpf, key, jnp.asarray(poses[40]), observations)
+    np.testing.assert_allclose(a[1].estimate, b[1].estimate, rtol=1e-9, atol=1e-10)
+    # and a tight manifold term changes the answer
+    tight = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=0.01, num_particles=100, dtype=jnp.float64)
+    c = run_filter(tight, key, jnp.asarray(poses[40]), observations)
+    assert np.abs(np.asarray(c[1].estimate) - np.asarray(a[1].estimate)).max() > 1e-4
+
+
+def test_latent_filters_follow_the_manifold(walk_prior, getkey):
+    """GPAPF and LatentPF estimate poses on the manifold close to the observed target poses."""
+    prior, poses = walk_prior
+    observations = jnp.asarray(poses[40:50])
+    recon_error = np.abs(np.asarray(prior.decode(prior.encode(observations[:, 6:]))) - np.asarray(observations[:, 6:])).mean()
+    for tracker in (
+        make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 60, 3, dtype=jnp.float64),
+        make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 60, 3, s_final=np.full(32, 0.01), dtype=jnp.float64),
+        make_latent_pf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 200, dtype=jnp.float64),
+    ):
+        state, info = run_filter(tracker, getkey(), observations[0], observations)
+        error = np.abs(np.asarray(info.estimate) - np.asarray(observations)).mean()
+        assert np.all(np.isfinite(np.asarray(info.estimate)))
+        assert error < 3 * recon_error + 0.01, (type(tracker).__name__, error, recon_error)
+    with pytest.raises(ValueError, match="needs a back-constrained manifold"):
+        from jaxtrack.manifold import make_gplvm
+
+        plain = make_manifold_prior(make_gplvm(poses[:40, 6:], 2), 32)
+        make_mrpf(pose_likelihood, plain, 0.02, 0.1, 0.1, 10)
+
+
+def test_noise_scales_from_validation(walk_prior):
+    from jaxtrack.filters import fit_noise_scales
+
+    prior, poses = walk_prior
+    scales = fit_noise_scales(prior, poses[40:])
+    steps = np.diff(poses[40:], axis=0)
+    np.testing.assert_allclose(scales.s_xx, np.maximum(np.sqrt((steps**2).mean(0)), 1e-3))
+    assert scales.s_xz.shape == (2,) and scales.s_zx.shape == (26,) and scales.nu.shape == (2,) and scales.s_global.shape == (6,)
+    assert np.all(scales.s_zx >= 1e-3)
+    with pytest.raises(ValueError, match=r"validation poses must be \(T >= 2, 32\)"):
+        fit_noise_scales(prior, poses[:1])

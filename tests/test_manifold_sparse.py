@@ -1,0 +1,124 @@
+"""Sparse (inducing point) GPLVM and the MLP back-constraint."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from helpers import finite_difference_check
+from jaxtrack.data import generate_motion
+from jaxtrack.manifold import (
+    MLPBackConstraint,
+    fit_model,
+    gaussian_log_marginal,
+    load_model,
+    make_bc_gplvm,
+    make_gplvm,
+    make_sparse_gplvm,
+    predict,
+    save_model,
+    sparse_log_marginal,
+)
+
+
+@pytest.fixture(scope="module")
+def walk_angles():
+    walk = generate_motion("walk", "S2", num_frames=90, fps=30.0, key=jax.random.key(3), dtype=jnp.float64)
+    return np.asarray(walk.pose[:, 6:])
+
+
+def numpy_bound(Z, U, Y, beta, gamma, beta0, noise, approximation):
+    """Titsias's bound written directly: ln N(Y | 0, Q + s2 I) - D/(2 s2) tr(K - Q)."""
+    k = lambda a, b: beta * np.exp(-0.5 * gamma * ((a[:, None] - b[None]) ** 2).sum(-1)) + beta0  # noqa: E731
+    Kuu = k(U, U)
+    Kuu = Kuu + 1e-8 * np.mean(np.diag(Kuu)) * np.eye(len(U))
+    Q = k(Z, U) @ np.linalg.solve(Kuu, k(U, Z))
+    n, d = Y.shape
+    C = Q + noise * np.eye(n)
+    value = -0.5 * n * d * np.log(2 * np.pi) - 0.5 * d * np.linalg.slogdet(C)[1] - 0.5 * np.trace(np.linalg.solve(C, Y @ Y.T))
+    if approximation == "vfe":
+        value -= 0.5 * d * np.trace(k(Z, Z) - Q) / noise
+    return value
+
+
+@pytest.mark.parametrize("approximation", ["vfe", "dtc"])
+def test_bound_equals_dense_numpy(walk_angles, getkey, approximation):
+    model = make_sparse_gplvm(walk_angles[:40], 2, num_inducing=7, approximation=approximation)
+    model = eqx.tree_at(lambda m: m.inducing, model, jax.random.normal(getkey(), (7, 2)))
+    k = model.kernel
+    args = [np.asarray(model.latent), np.asarray(model.inducing), np.asarray(model.data)]
+    expected = numpy_bound(*args, *(float(v) for v in (k.beta, k.gamma, k.beta0, k.noise)), approximation)
+    value = sparse_log_marginal(model.kernel, model.inducing, model.latent, model.data, approximation)
+    assert float(value) == pytest.approx(expected, rel=1e-9)
+
+
+def test_bound_is_exact_with_all_points_and_below_otherwise(walk_angles):
+    Y = walk_angles[:20]
+    full = make_gplvm(Y, 2)
+    sparse = make_sparse_gplvm(Y, 2, num_inducing=20)
+    sparse = eqx.tree_at(lambda m: m.inducing, sparse, full.latent)  # U = Z
+    exact = gaussian_log_marginal(full.kernel.gram(full.latent), full.data)
+    assert float(sparse_log_marginal(sparse.kernel, sparse.inducing, sparse.latent, sparse.data)) == pytest.approx(float(exact), rel=1e-6)
+    fewer = make_sparse_gplvm(Y, 2, num_inducing=5)
+    assert float(sparse_log_marginal(fewer.kernel, fewer.inducing, fewer.latent, fewer.data)) < float(exact)
+    # with U = Z the sparse predictive equals the exact one
+    z = jnp.linspace(-2.0, 2.0, 14).reshape(7, 2)
+    (m1, v1), (m2, v2) = sparse.predictor()(z), full.predictor()(z)
+    np.testing.assert_allclose(m1, m2, atol=1e-4)
+    np.testing.assert_allclose(v1, v2, atol=1e-5)
+
+
+def test_sparse_and_mlp_gradients_match_finite_differences(walk_angles, getkey):
+    Y = walk_angles[:30]
+    models = (make_sparse_gplvm(Y, 2, num_inducing=8), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, key=getkey()))
+    for model in models:
+        params, static = eqx.partition(model, model.trainable())
+        flat, unravel = jax.flatten_util.ravel_pytree(params)
+        f = lambda v, static=static, unravel=unravel: eqx.combine(unravel(v), static).objective()  # noqa: E731
+        finite_difference_check(f, flat, jax.random.normal(getkey(), flat.shape), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_sparse_fit_reconstructs_better_than_pca(walk_angles):
+    from jaxtrack.manifold import fit_pca
+
+    Y = walk_angles
+    model = make_sparse_gplvm(Y, 2, num_inducing=20)
+    fitted, info = fit_model(model, max_steps=200)
+    assert info.objective > float(model.objective()) + 100
+    recon, _ = predict(fitted, fitted.latent)
+    linear = fit_pca(Y, 2)
+    pca_err = np.abs(np.asarray(linear.decode(linear.encode(jnp.asarray(Y)))) - Y).mean()
+    assert np.abs(np.asarray(recon) - Y).mean() < 0.5 * pca_err
+
+
+@pytest.mark.slow
+def test_mlp_back_constraint_starts_at_pca_and_fits(walk_angles, getkey):
+    Y = walk_angles[:60]
+    pca_start = make_gplvm(Y, 2).latent
+    mlp_bc = make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=16, key=getkey())
+    assert isinstance(mlp_bc.back, MLPBackConstraint)
+    np.testing.assert_allclose(mlp_bc.latent, pca_start, atol=1e-8)
+    fitted, info = fit_model(mlp_bc, max_steps=150)
+    assert info.objective > float(mlp_bc.objective()) + 10
+    np.testing.assert_allclose(fitted.encode(jnp.asarray(Y)), fitted.latent, atol=1e-10)
+    with pytest.raises(ValueError, match="explicit PRNG key"):
+        make_bc_gplvm(Y, 2, back_constraint="mlp")
+    with pytest.raises(ValueError, match="back_constraint must be one of"):
+        make_bc_gplvm(Y, 2, back_constraint="rbf")
+    with pytest.raises(ValueError, match="num_inducing must be between 1 and the 60"):
+        make_sparse_gplvm(Y, 2, num_inducing=61)
+
+
+def test_save_load_sparse_and_mlp(walk_angles, getkey, tmp_path):
+    Y = walk_angles[:30]
+    for model in (make_sparse_gplvm(Y, 2, num_inducing=6, approximation="dtc"), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, depth=2, key=getkey())):
+        path = tmp_path / "model.eqx"
+        save_model(path, model)
+        back, header = load_model(path)
+        assert type(back) is type(model)
+        assert float(back.objective()) == pytest.approx(float(model.objective()), rel=1e-12)
+        z = jnp.ones((3, 2))
+        np.testing.assert_allclose(predict(back, z)[0], predict(model, z)[0])
+    assert back.back.mlp.depth == 2
