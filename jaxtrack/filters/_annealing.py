@@ -38,3 +38,13 @@ def choose_beta(log_likelihoods: Float[Array, " n"], target: float, iterations: 
     (lo, _), _ = jax.lax.scan(bisect, (jnp.asarray(MIN_LOG_BETA, dtype), jnp.asarray(0.0, dtype)), None, length=iterations)
     full = survival_rate(shifted, jnp.asarray(1.0, dtype)) >= target
     return jnp.where(full, jnp.asarray(1.0, dtype), jnp.exp(lo))
+
+
+def check_annealing(num_layers, survival_target, fixed_betas) -> None:
+    """Validate the annealing settings shared by APF and GPAPF; raises ``ValueError``."""
+    if not isinstance(num_layers, int) or num_layers < 1:
+        raise ValueError(f"num_layers must be a positive integer, got {num_layers!r}")
+    if not 0.0 < survival_target < 1.0:
+        raise ValueError(f"survival_target must be in (0, 1), got {survival_target}")
+    if fixed_betas is not None and len(fixed_betas) != num_layers:
+        raise ValueError(f"fixed_betas has {len(fixed_betas)} entries for {num_layers} layers")

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._annealing import choose_beta
+from ._annealing import check_annealing, choose_beta
 from ._core import FilterState, StepInfo, check_particles, check_scales, duplicate
 from ._manifold_prior import ManifoldPrior
 from ._pose_filters import annealed_layers, diffuse
@@ -104,10 +104,7 @@ class GPAPF(eqx.Module):
 
     def __check_init__(self):
         check_particles(self.num_particles)
-        if not isinstance(self.num_layers, int) or self.num_layers < 1:
-            raise ValueError(f"num_layers must be a positive integer, got {self.num_layers!r}")
-        if self.fixed_betas is not None and len(self.fixed_betas) != self.num_layers:
-            raise ValueError(f"fixed_betas has {len(self.fixed_betas)} entries for {self.num_layers} layers")
+        check_annealing(self.num_layers, self.survival_target, self.fixed_betas)
         if self.estimator not in LATENT_ESTIMATORS:
             raise ValueError(f"estimator must be one of {LATENT_ESTIMATORS}, got {self.estimator!r}")
         get_resampler(self.resampler)

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._annealing import choose_beta
+from ._annealing import check_annealing, choose_beta
 from ._core import FilterState, StepInfo, check_particles, check_scales, duplicate
 from ._resampling import get_resampler
 from ._weights import best_particle, effective_sample_size, log_mean_exp, normalise_log_weights, weighted_mean
@@ -135,12 +135,7 @@ class APF(eqx.Module):
 
     def __check_init__(self):
         check_particles(self.num_particles)
-        if not isinstance(self.num_layers, int) or self.num_layers < 1:
-            raise ValueError(f"num_layers must be a positive integer, got {self.num_layers!r}")
-        if not 0.0 < self.survival_target < 1.0:
-            raise ValueError(f"survival_target must be in (0, 1), got {self.survival_target}")
-        if self.fixed_betas is not None and len(self.fixed_betas) != self.num_layers:
-            raise ValueError(f"fixed_betas has {len(self.fixed_betas)} entries for {self.num_layers} layers")
+        check_annealing(self.num_layers, self.survival_target, self.fixed_betas)
         get_resampler(self.resampler)
         _check_estimator(self.estimator)
 
