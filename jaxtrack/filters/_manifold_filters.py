@@ -13,7 +13,7 @@ from .._custom_types import Array, Float
 from ._annealing import check_annealing, choose_beta
 from ._core import FilterState, StepInfo, check_particles, check_scales, duplicate
 from ._manifold_prior import ManifoldPrior
-from ._pose_filters import annealed_layers, diffuse
+from ._pose_filters import _check_estimator, annealed_layers, diffuse, estimate_pose
 from ._resampling import get_resampler
 from ._weights import best_particle, effective_sample_size, log_mean_exp, normalise_log_weights, weighted_mean
 
@@ -42,8 +42,7 @@ class MRPF(eqx.Module):
     def __check_init__(self):
         check_particles(self.num_particles)
         get_resampler(self.resampler)
-        if self.estimator not in ("mean", "best"):
-            raise ValueError(f"estimator must be 'mean' or 'best', got {self.estimator!r}")
+        _check_estimator(self.estimator)
         if self.prior.encoder is None:
             raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
 
@@ -63,9 +62,8 @@ class MRPF(eqx.Module):
         log_manifold = -0.5 * jnp.sum(residual**2, axis=1)
         log_weights, degenerate = normalise_log_weights(log_lik + log_manifold)
         ess = effective_sample_size(log_weights)
-        estimate = weighted_mean(log_weights, particles) if self.estimator == "mean" else best_particle(log_weights, particles)
         info = StepInfo(
-            estimate=estimate, ess=ess, log_evidence=log_mean_exp(log_lik), betas=jnp.ones(1, particles.dtype),
+            estimate=estimate_pose(self.estimator, log_weights, particles), ess=ess, log_evidence=log_mean_exp(log_lik), betas=jnp.ones(1, particles.dtype),
             survival=(ess / self.num_particles)[None], degenerate=degenerate,
         )
         return FilterState(particles, log_weights), info
