@@ -21,6 +21,7 @@ import numpy as np
 from .body import HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, part_group_indices
 from .evaluation import mean_joint_error_mm, per_frame_error_mm, per_group_error_mm
 from .filters import (
+    MRPF_PROPOSALS,
     fit_noise_scales,
     make_apf,
     make_gpapf,
@@ -52,6 +53,8 @@ class ExperimentConfig:
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
         frames: track only the first ``frames`` frames of each test sequence (None: all).
         seed: base PRNG seed.
+        mrpf_proposal: how MRPF draws poses: ``"product"`` (eq. 28 sampled exactly) or
+            ``"prior"`` (000 Alg. 1 as printed); see ``jaxtrack.filters.MRPF``.
     """
 
     methods: tuple[str, ...] = METHODS
@@ -63,11 +66,14 @@ class ExperimentConfig:
     likelihood_scale: float = 100.0
     frames: int | None = None
     seed: int = 0
+    mrpf_proposal: str = "product"
 
     def __post_init__(self):
         unknown = [m for m in self.methods if m not in METHODS]
         if unknown or not self.methods:
             raise ValueError(f"unknown methods {unknown}; choose from {list(METHODS)}")
+        if self.mrpf_proposal not in MRPF_PROPOSALS:
+            raise ValueError(f"mrpf_proposal must be one of {MRPF_PROPOSALS}, got {self.mrpf_proposal!r}")
         if self.budget < 1 or self.runs < 1 or self.layers < 1:
             raise ValueError("budget, runs and layers must be positive")
         annealed = [m for m in self.methods if m in ("apf", "gpapf")]
@@ -117,7 +123,9 @@ def make_tracker(method: str, config: ExperimentConfig, likelihood, prior, scale
     if method == "apf":
         return make_apf(log_lik, scales.s_xx, budget // layers, layers, dtype=dtype)
     if method == "mrpf":
-        return make_mrpf(log_lik, prior, scales.s_xx, scales.s_xz, scales.s_zx, budget, dtype=dtype)
+        if config.mrpf_proposal == "prior":  # 000 Alg. 1 as printed, with eqs. 29 and 30 fitted separately
+            return make_mrpf(log_lik, prior, scales.s_xx, scales.s_xz, scales.s_zx_residual, budget, dtype=dtype, proposal="prior")
+        return make_mrpf(log_lik, prior, scales.mrpf_s_xx, scales.s_xz, scales.s_zx, budget, dtype=dtype)
     if method == "gpapf":
         return make_gpapf(log_lik, prior, scales.s_global, scales.nu, budget // layers, layers - 1, s_final=0.5 * scales.s_xx, dtype=dtype)
     if method == "latentpf":

@@ -53,6 +53,24 @@ def _convert(args) -> int:
     return 0
 
 
+def _scene(args) -> int:
+    import jax
+
+    from .camera import default_rig
+    from .data import NO_NOISE, SilhouetteNoise, scene_from_sequence
+    from .io import load_sequence, save_sequence
+
+    sequence = load_sequence(args.source)
+    rig = default_rig(args.width, args.height, num_views=args.views)
+    noise = NO_NOISE if args.clean else SilhouetteNoise()
+    scene = scene_from_sequence(jax.random.key(args.seed), sequence, rig, noise, start=args.start, frames=args.frames,
+                                centre=not args.no_centre, progress=True)
+    save_sequence(args.out, scene)
+    print(f"wrote {args.out}: {scene.num_frames} frames at {scene.fps:g} Hz in {args.views} "
+          f"{'clean' if args.clean else 'noisy'} {args.width}x{args.height} silhouette views")
+    return 0
+
+
 def _fit(args) -> int:
     import jax
 
@@ -113,6 +131,7 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
+        mrpf_proposal=args.mrpf_proposal,
     )
     train, train_names = load_sequences(args.train)
     validation, validation_names = load_sequences(args.validation)
@@ -189,6 +208,19 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--seed", type=int, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
     convert.set_defaults(run=_convert)
 
+    scene = sub.add_parser("scene", help="render a sequence's motion into synthetic multi-view silhouettes (a test sequence)")
+    scene.add_argument("source", help="a sequence file with 'pose' (e.g. from 'jaxtrack convert')")
+    scene.add_argument("out", help="output sequence file (.npz) with cameras and silhouettes")
+    scene.add_argument("--start", type=int, default=0, help="first frame to keep (default: %(default)s)")
+    scene.add_argument("--frames", type=int, help="frames to keep (default: to the end)")
+    scene.add_argument("--width", type=int, default=80, help="image width in pixels (default: %(default)s)")
+    scene.add_argument("--height", type=int, default=60, help="image height in pixels (default: %(default)s)")
+    scene.add_argument("--views", type=int, default=4, help="cameras around the capture area (default: %(default)s)")
+    scene.add_argument("--clean", action="store_true", help="no background-subtraction noise")
+    scene.add_argument("--no-centre", action="store_true", help="keep the recorded floor position (default: centre the path)")
+    scene.add_argument("--seed", type=int, default=0, help="PRNG seed of the silhouette noise (default: %(default)s)")
+    scene.set_defaults(run=_scene)
+
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
     fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm"), default="bc-gplvm")
@@ -212,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
     experiment.add_argument("--seed", type=int, default=0)
+    experiment.add_argument("--mrpf-proposal", choices=("product", "prior"), default="product",
+                            help="MRPF draws poses from 000 eq. 28 exactly (product, default) or as 000 Alg. 1 prints it (prior)")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)

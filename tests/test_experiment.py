@@ -26,6 +26,8 @@ def test_bad_experiment_inputs(sequences):
         ExperimentConfig(budget=500, layers=3, methods=("sir", "apf"))
     with pytest.raises(ValueError, match=r"unknown methods \['pf'\]"):
         ExperimentConfig(methods=("pf",))
+    with pytest.raises(ValueError, match="mrpf_proposal must be one of"):
+        ExperimentConfig(mrpf_proposal="optimal")
     with pytest.raises(ValueError, match="needs silhouettes and cameras"):
         check_test_sequence(train[0], "walk.npz")
     with pytest.raises(ValueError, match="needs silhouettes, which the file lacks"):

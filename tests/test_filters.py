@@ -187,19 +187,50 @@ def pose_likelihood(poses, target):
     return -0.5 * jnp.sum(((poses - target) / 0.05) ** 2, axis=1)
 
 
-def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey):
+@pytest.mark.parametrize("proposal", ["product", "prior"])
+def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey, proposal):
     prior, poses = walk_prior
     key = getkey()
     s_xx = np.full(32, 0.02)
     sir = make_sir(pose_likelihood, s_xx, 100, dtype=jnp.float64)
-    mrpf = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=1e8, num_particles=100, dtype=jnp.float64)
+    mrpf = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=1e8, num_particles=100, dtype=jnp.float64, proposal=proposal)
     observations = jnp.asarray(poses[41:49])
     a, b = run_filter(sir, key, jnp.asarray(poses[40]), observations), run_filter(mrpf, key, jnp.asarray(poses[40]), observations)
     np.testing.assert_allclose(a[1].estimate, b[1].estimate, rtol=1e-9, atol=1e-10)
     # and a tight manifold term changes the answer
-    tight = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=0.01, num_particles=100, dtype=jnp.float64)
+    tight = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=0.01, num_particles=100, dtype=jnp.float64, proposal=proposal)
     c = run_filter(tight, key, jnp.asarray(poses[40]), observations)
     assert np.abs(np.asarray(c[1].estimate) - np.asarray(a[1].estimate)).max() > 1e-4
+
+
+def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
+    """With a flat image likelihood, one MRPF step with the product proposal is a sample of
+    000 eqs. 27-28: its moments match a direct Monte-Carlo of z ~ N(g(x0), s_xz^2),
+    x ~ N(m(z), v); its weights stay uniform, while Alg. 1's eq. 30 weights do not."""
+    prior, poses = walk_prior
+    flat = lambda x, obs: jnp.zeros(x.shape[0], x.dtype)  # noqa: E731
+    s_xx, s_xz, s_zx = np.full(32, 0.05), 0.05, np.full(26, 0.03)
+    start = jnp.asarray(poses[40])
+    n = 40000
+    mrpf = make_mrpf(flat, prior, s_xx, s_xz=s_xz, s_zx=s_zx, num_particles=n, dtype=jnp.float64)
+    state, info = run_filter(mrpf, getkey(), start, jnp.zeros((1, 1)))
+    x = np.asarray(state.particles)
+    np.testing.assert_allclose(float(info.ess[0]), n, rtol=1e-9)
+    # the reference, written out from the equations
+    z = np.asarray(prior.encode(start[None, 6:]))[0] + s_xz * np.asarray(jax.random.normal(getkey(), (n, 2), jnp.float64))
+    mu = np.asarray(prior.decode(jnp.asarray(z)))
+    var_xx, var_zx = 0.05**2, 0.03**2
+    m = (var_zx * np.asarray(start[6:]) + var_xx * mu) / (var_xx + var_zx)
+    reference = m + np.sqrt(var_xx * var_zx / (var_xx + var_zx)) * np.asarray(jax.random.normal(getkey(), m.shape, jnp.float64))
+    angles = x[:, 6:]
+    sem = np.sqrt(angles.var(0) / n + reference.var(0) / n)
+    assert np.all(np.abs(angles.mean(0) - reference.mean(0)) < 5 * sem), np.max(np.abs(angles.mean(0) - reference.mean(0)) / sem)
+    np.testing.assert_allclose(angles.var(0), reference.var(0), rtol=0.05)
+    np.testing.assert_allclose(x[:, :6].std(0), 0.05, rtol=0.03)  # global entries: eq. 29 only
+    printed = make_mrpf(flat, prior, s_xx, s_xz=s_xz, s_zx=s_zx, num_particles=n, dtype=jnp.float64, proposal="prior")
+    assert float(run_filter(printed, getkey(), start, jnp.zeros((1, 1)))[1].ess[0]) < 0.5 * n
+    with pytest.raises(ValueError, match="proposal must be one of"):
+        make_mrpf(flat, prior, s_xx, 0.05, s_zx, 10, proposal="optimal")
 
 
 def test_latent_filters_follow_the_manifold(walk_prior, getkey):
@@ -234,3 +265,29 @@ def test_noise_scales_from_validation(walk_prior):
     assert np.all(scales.s_zx >= 1e-3)
     with pytest.raises(ValueError, match=r"validation poses must be \(T >= 2, 32\)"):
         fit_noise_scales(prior, poses[:1])
+    np.testing.assert_array_equal(scales.mrpf_s_xx[:6], scales.s_xx[:6])
+    assert np.all(scales.mrpf_s_xx >= 1e-3) and np.all(np.isfinite(scales.mrpf_s_xx))
+
+
+def test_transition_scales_recover_the_generating_ones(getkey):
+    """Pose pairs drawn from 000 eq. 28 (normalised) with known s_xx, s_zx: the maximum-likelihood
+    fit recovers them, the objective's autodiff gradient vanishes there, and moving any log-scale
+    by +-0.05 lowers it."""
+    from jaxtrack.filters._noise import fit_transition_scales, transition_log_likelihood
+
+    t, a = 4000, 3
+    s_xx, s_zx = np.array([0.05, 0.02, 0.08]), np.array([0.02, 0.04, 0.01])
+    previous = np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64)) * 0.3
+    mu = previous + 0.1 * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    total = s_xx**2 + s_zx**2
+    mean = (s_zx**2 * previous + s_xx**2 * mu) / total
+    current = mean + np.sqrt(s_xx**2 * s_zx**2 / total) * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    fit_xx, fit_zx = fit_transition_scales([(previous, current)], [mu[None]], np.full(a, 0.03), np.full(a, 0.03), floor=1e-6)
+    np.testing.assert_allclose(fit_xx, s_xx, rtol=0.08)
+    np.testing.assert_allclose(fit_zx, s_zx, rtol=0.08)
+    objective = lambda log_s: transition_log_likelihood(previous, current, mu[None], jnp.exp(log_s[:a]), jnp.exp(log_s[a:]))  # noqa: E731
+    at = jnp.log(jnp.concatenate([jnp.asarray(fit_xx), jnp.asarray(fit_zx)]))
+    assert float(jnp.max(jnp.abs(jax.grad(objective)(at)))) < 1e-4
+    for i in range(2 * a):
+        for step in (-0.05, 0.05):
+            assert float(objective(at.at[i].add(step))) < float(objective(at))

@@ -305,3 +305,24 @@ def test_convert_cli_on_real_amc(shared_data, tmp_path):
     seq = load_sequence(out)
     assert seq.num_frames == 90 and seq.pose.shape == (90, 32)
     save_sequence(tmp_path / "again.npz", seq)
+
+
+def test_cmu_mat_trials_written_as_amc(shared_data, tmp_path):
+    """benchmarks/cmu_trials_to_amc.py writes GPmat's 30 Hz trials as AMC files that read back
+    to the same channel values; trial 35_01 equals every 4th frame of the raw 120 Hz file."""
+    import importlib.util
+
+    from jaxtrack.io import read_amc, read_asf
+
+    script = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "cmu_trials_to_amc.py")
+    spec = importlib.util.spec_from_file_location("cmu_trials_to_amc", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main([str(tmp_path), "--data", os.path.join(shared_data, "cmu35")]) == 0
+    skeleton = read_asf(tmp_path / "35.asf")
+    _, written = read_amc(tmp_path / "35_01.amc", skeleton)
+    _, raw = read_amc(os.path.join(shared_data, "cmu35", "35_01.amc"), skeleton)
+    assert written.shape == (90, 62)
+    np.testing.assert_allclose(written, raw[::4][:90], rtol=1e-5, atol=1e-4)
+    assert read_amc(tmp_path / "35_18.amc", skeleton)[1].shape[0] == 44
+    assert read_amc(tmp_path / "35_29.amc", skeleton)[1].shape[0] == 125

@@ -248,3 +248,55 @@ def motion_sequence(motion: SyntheticMotion) -> Sequence:
         skeleton_offsets=np.asarray(skeleton.offsets, np.float64),
         capsule_radii=np.asarray(motion.body.radii, np.float64),
     )
+
+
+def scene_from_sequence(
+    key,
+    sequence: Sequence,
+    rig: CameraRig,
+    noise: SilhouetteNoise = SilhouetteNoise(),
+    *,
+    start: int = 0,
+    frames: int | None = None,
+    centre: bool = True,
+    progress: bool = False,
+) -> Sequence:
+    """Render recorded motion (e.g. CMU or Bandai after ``jaxtrack convert``) into a synthetic
+    multi-view silhouette scene with the sequence's own body: the HumanEva-like test setting on
+    real motion.
+
+    Args:
+        key: PRNG key of the silhouette noise.
+        sequence: a sequence with ``pose`` (the rendered body follows it) and optionally
+            ``joints3d`` (kept as the ground truth; otherwise forward kinematics of ``pose``).
+        rig: the cameras.
+        start, frames: the frame range to keep (``frames=None``: to the end).
+        centre: shift the root's horizontal path so its midpoint is the capture area's
+            centre (recorded takes cross several metres of floor).
+    Raises:
+        ValueError: no ``pose``, an empty frame range, or the body outside a view
+            (``build_scene``'s checks).
+    """
+    from ..body import forward_kinematics
+
+    if sequence.pose is None:
+        raise ValueError("the sequence has no 'pose' to render (make one with 'jaxtrack convert')")
+    stop = sequence.num_frames if frames is None else start + int(frames)
+    if not (0 <= start < stop <= sequence.num_frames):
+        raise ValueError(f"frames {start}..{stop - 1} are outside the sequence's {sequence.num_frames} frames")
+    body = sequence.body()
+    layout = [str(n) for n in sequence.pose_layout]
+    pose = np.array(sequence.pose[start:stop], np.float64)
+    if sequence.joints3d is not None:
+        joints = np.array(sequence.joints3d[start:stop], np.float64)
+    else:
+        joints = np.asarray(forward_kinematics(body.skeleton, jnp.asarray(pose, body.radii.dtype)), np.float64)
+    if centre:
+        horizontal = [layout.index("root_x"), layout.index("root_y")]
+        path = pose[:, horizontal]
+        shift = 0.5 * (path.min(axis=0) + path.max(axis=0))
+        pose[:, horizontal] -= shift
+        joints[..., :2] -= shift
+    speed = float(np.mean(np.linalg.norm(np.diff(joints[:, 0, :2], axis=0), axis=1)) * sequence.fps) if len(joints) > 1 else 0.0
+    motion = SyntheticMotion(body=body, pose=pose, joints3d=joints, fps=float(sequence.fps), gait="recorded", subject="recorded", speed=speed)
+    return build_scene(key, motion, rig, noise, progress=progress)

@@ -7,6 +7,7 @@ from ._core import StepInfo as StepInfo
 from ._core import run_filter as run_filter
 from ._manifold_filters import GPAPF as GPAPF
 from ._manifold_filters import MRPF as MRPF
+from ._manifold_filters import MRPF_PROPOSALS as MRPF_PROPOSALS
 from ._manifold_filters import make_gpapf as make_gpapf
 from ._manifold_filters import make_latent_pf as make_latent_pf
 from ._manifold_filters import make_mrpf as make_mrpf

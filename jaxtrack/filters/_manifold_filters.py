@@ -18,16 +18,31 @@ from ._resampling import get_resampler
 from ._weights import best_particle, effective_sample_size, log_mean_exp, normalise_log_weights, weighted_mean
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise matches SIR's
+MRPF_PROPOSALS = ("product", "prior")
 
 
 class MRPF(eqx.Module):
     """Manifold regularised particle filter (000 Alg. 1, eqs. 4-11 and 27-30).
 
-    Per frame, for each particle (after resampling by the previous weights):
-    ``z_t ~ N(g(x_{t-1}), diag(s_xz^2))`` (000 eq. 27, g the back-constraint),
-    ``x_t ~ N(x_{t-1}, diag(s_xx^2))`` (eq. 29), and the weight
-    ``p(I_t | x_t) N(x_t^a | mu(z_t), diag(s_zx^2))`` (eqs. 7 and 30; ``x^a`` the joint angles the
-    manifold covers). The estimate is the weighted mean (or the best particle).
+    The dynamics (000 eqs. 27-30): ``z_t ~ N(g(x_{t-1}), diag(s_xz^2))`` (g the back-constraint)
+    and ``p(x_t | x_{t-1}, z_t) ∝ N(x_t | x_{t-1}, diag(s_xx^2)) N(x_t^a | mu(z_t), diag(s_zx^2))``
+    (eq. 28; ``x^a`` the joint angles the manifold covers, the global entries follow eq. 29 only).
+    Per frame, after resampling by the previous weights, ``proposal`` picks how x_t is drawn:
+
+    - ``"product"`` (default): x_t drawn exactly from eq. 28 normalised over x_t, a Gaussian
+      with mean ``(s_zx^2 x_{t-1} + s_xx^2 mu(z_t)) / (s_xx^2 + s_zx^2)`` and variance
+      ``s_xx^2 s_zx^2 / (s_xx^2 + s_zx^2)``; the weight of eq. 7 is then 1 and eq. 11 leaves
+      the image likelihood ``p(I_t | x_t)``. The paper calls this draw intractable in general
+      (000 sec. 3); with the Gaussian models of sec. 5.2 it is not.
+    - ``"prior"`` (000 Alg. 1 as printed): ``x_t ~ N(x_{t-1}, diag(s_xx^2))`` (eq. 29) and the
+      weight ``p(I_t | x_t) N(x_t^a | mu(z_t), diag(s_zx^2))`` (eqs. 11 and 30). Eq. 30 drops
+      eq. 28's normaliser ``N(x_{t-1}^a | mu(z_t), diag(s_xx^2 + s_zx^2))``, which depends on the
+      particle: it rewards latent draws whose mean stays near the previous pose, a pull towards
+      standing still, and with ``s_zx`` below ``s_xx`` the weights collapse onto a few particles.
+
+    The estimate is the weighted mean (or the best particle). With ``s_zx`` very large both
+    proposals reduce to SIR with ``s_xx``. ``fit_noise_scales`` fits ``s_zx`` and the angle
+    entries of ``s_xx`` (``mrpf_s_xx``) by maximum likelihood of the eq. 27-28 transition.
     """
 
     likelihood: Callable
@@ -38,11 +53,14 @@ class MRPF(eqx.Module):
     num_particles: int = eqx.field(static=True)
     resampler: str = eqx.field(static=True, default="systematic")
     estimator: str = eqx.field(static=True, default="mean")
+    proposal: str = eqx.field(static=True, default="product")
 
     def __check_init__(self):
         check_particles(self.num_particles)
         get_resampler(self.resampler)
         _check_estimator(self.estimator)
+        if self.proposal not in MRPF_PROPOSALS:
+            raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {self.proposal!r}")
         if self.prior.encoder is None:
             raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
 
@@ -50,16 +68,28 @@ class MRPF(eqx.Module):
         del key
         return duplicate(initial_pose.astype(self.s_xx.dtype), self.num_particles)
 
+    def _product(self, previous, manifold_mean):
+        """Mean (N, D) and standard deviation (D,) of eq. 28 normalised over x_t."""
+        g = self.prior.global_dims
+        var_xx, var_zx = self.s_xx[g:] ** 2, self.s_zx**2
+        total = var_xx + var_zx
+        angles = (var_zx * previous[:, g:] + var_xx * manifold_mean) / total
+        return jnp.concatenate([previous[:, :g], angles], axis=1), jnp.concatenate([self.s_xx[:g], jnp.sqrt(var_xx * var_zx / total)])
+
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         resample_key, move_key = jax.random.split(key)
         ancestors = get_resampler(self.resampler)(jax.random.fold_in(resample_key, 0), state.log_weights)
         previous = state.particles[ancestors]
         g = self.prior.global_dims
         latent = diffuse(jax.random.fold_in(move_key, LATENT_STREAM), self.prior.encode(previous[:, g:]), self.s_xz)
-        particles = diffuse(jax.random.fold_in(move_key, 0), previous, self.s_xx)
+        manifold_mean = self.prior.decode(latent)
+        if self.proposal == "prior":
+            particles = diffuse(jax.random.fold_in(move_key, 0), previous, self.s_xx)
+            log_manifold = -0.5 * jnp.sum(((particles[:, g:] - manifold_mean) / self.s_zx) ** 2, axis=1)
+        else:
+            particles = diffuse(jax.random.fold_in(move_key, 0), *self._product(previous, manifold_mean))
+            log_manifold = 0.0
         log_lik = self.likelihood(particles, observation)
-        residual = (particles[:, g:] - self.prior.decode(latent)) / self.s_zx
-        log_manifold = -0.5 * jnp.sum(residual**2, axis=1)
         log_weights, degenerate = normalise_log_weights(log_lik + log_manifold)
         ess = effective_sample_size(log_weights)
         info = StepInfo(
@@ -175,7 +205,9 @@ def make_latent_pf(likelihood, prior: ManifoldPrior, s_global, nu, num_particles
 
 
 def make_mrpf(likelihood, prior: ManifoldPrior, s_xx, s_xz, s_zx, num_particles: int, *, dtype=jnp.float32, **options) -> MRPF:
-    """An ``MRPF`` with noise scales (000 eqs. 27, 29, 30), usually from ``fit_noise_scales``."""
+    """An ``MRPF`` with noise scales (000 eqs. 27, 29, 30), usually from ``fit_noise_scales``;
+    ``proposal="prior"`` is 000 Alg. 1 as printed, ``"product"`` (default) samples eq. 28 exactly.
+    Pass ``scales.mrpf_s_xx`` as ``s_xx`` when the scales come from ``fit_noise_scales``."""
     return MRPF(
         likelihood=likelihood, prior=prior.astype(dtype),
         s_xx=jnp.asarray(check_scales("s_xx", s_xx, prior.pose_dim), dtype),
