@@ -203,6 +203,25 @@ def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey, proposal)
     assert np.abs(np.asarray(c[1].estimate) - np.asarray(a[1].estimate)).max() > 1e-4
 
 
+def test_mrpf_with_an_overflowing_manifold_scale_stays_finite(walk_prior, getkey):
+    """A manifold scale that overflows float32 (a fitted s_zx the data leave unbounded) makes the
+    float32 MRPF exactly SIR, with no NaN (a Bandai run once gave s_zx = 2e47)."""
+    prior, poses = walk_prior
+    key = getkey()
+    s_xx = np.full(32, 0.02)
+    s_zx = np.full(26, 0.05)
+    s_zx[0] = 2e47
+    observations = jnp.asarray(poses[41:45], jnp.float32)
+    mrpf = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=s_zx, num_particles=50)
+    state, info = run_filter(mrpf, key, jnp.asarray(poses[40], jnp.float32), observations)
+    assert np.all(np.isfinite(np.asarray(info.estimate))) and np.all(np.isfinite(np.asarray(state.particles)))
+    flat = make_mrpf(pose_likelihood, prior, s_xx, s_xz=0.1, s_zx=np.full(26, 2e47), num_particles=50)
+    sir = make_sir(pose_likelihood, s_xx, 50)
+    a = run_filter(flat, key, jnp.asarray(poses[40], jnp.float32), observations)[1].estimate
+    b = run_filter(sir, key, jnp.asarray(poses[40], jnp.float32), observations)[1].estimate
+    np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
+
+
 def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
     """With a flat image likelihood, one MRPF step with the product proposal is a sample of
     000 eqs. 27-28: its moments match a direct Monte-Carlo of z ~ N(g(x0), s_xz^2),

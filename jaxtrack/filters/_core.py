@@ -92,8 +92,10 @@ def run_filter(filter_, key, initial_pose: Float[Array, " d"], observations: Any
     return _scan(filter_, key, initial_pose, observations)
 
 
-def check_scales(name: str, scales, size: int):
-    """A positive (size,) noise scale vector (a scalar is broadcast); raises ``ValueError``."""
+def check_scales(name: str, scales, size: int, dtype=None):
+    """A positive (size,) noise scale vector (a scalar is broadcast); raises ``ValueError``.
+    With ``dtype``, values beyond its range are clipped to its largest finite number (a scale
+    that large is flat; casting would overflow to inf)."""
     import numpy as np
 
     values = np.broadcast_to(np.asarray(scales, np.float64), (size,)) if np.ndim(scales) == 0 else np.asarray(scales, np.float64)
@@ -101,6 +103,8 @@ def check_scales(name: str, scales, size: int):
         raise ValueError(f"{name} must be a scalar or have shape ({size},), got {values.shape}")
     if not np.all(np.isfinite(values)) or np.any(values < 0):
         raise ValueError(f"{name} must be finite and non-negative")
+    if dtype is not None:
+        values = np.minimum(values, float(np.finfo(np.dtype(dtype)).max))
     return values
 
 

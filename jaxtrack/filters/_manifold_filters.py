@@ -71,10 +71,10 @@ class MRPF(eqx.Module):
     def _product(self, previous, manifold_mean):
         """Mean (N, D) and standard deviation (D,) of eq. 28 normalised over x_t."""
         g = self.prior.global_dims
-        var_xx, var_zx = self.s_xx[g:] ** 2, self.s_zx**2
-        total = var_xx + var_zx
-        angles = (var_zx * previous[:, g:] + var_xx * manifold_mean) / total
-        return jnp.concatenate([previous[:, :g], angles], axis=1), jnp.concatenate([self.s_xx[:g], jnp.sqrt(var_xx * var_zx / total)])
+        s_xx = self.s_xx[g:]
+        pull = 1.0 / (1.0 + (self.s_zx / s_xx) ** 2)  # s_xx^2 / (s_xx^2 + s_zx^2), finite for any s_zx (inf: 0)
+        angles = previous[:, g:] + pull * (manifold_mean - previous[:, g:])
+        return jnp.concatenate([previous[:, :g], angles], axis=1), jnp.concatenate([self.s_xx[:g], s_xx * jnp.sqrt(1.0 - pull)])
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         resample_key, move_key = jax.random.split(key)
@@ -210,8 +210,8 @@ def make_mrpf(likelihood, prior: ManifoldPrior, s_xx, s_xz, s_zx, num_particles:
     Pass ``scales.mrpf_s_xx`` as ``s_xx`` when the scales come from ``fit_noise_scales``."""
     return MRPF(
         likelihood=likelihood, prior=prior.astype(dtype),
-        s_xx=jnp.asarray(check_scales("s_xx", s_xx, prior.pose_dim), dtype),
-        s_xz=jnp.asarray(check_scales("s_xz", s_xz, prior.latent_dim), dtype),
-        s_zx=jnp.asarray(check_scales("s_zx", s_zx, prior.pose_dim - prior.global_dims), dtype),
+        s_xx=jnp.asarray(check_scales("s_xx", s_xx, prior.pose_dim, dtype), dtype),
+        s_xz=jnp.asarray(check_scales("s_xz", s_xz, prior.latent_dim, dtype), dtype),
+        s_zx=jnp.asarray(check_scales("s_zx", s_zx, prior.pose_dim - prior.global_dims, dtype), dtype),
         num_particles=num_particles, **options,
     )

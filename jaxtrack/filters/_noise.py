@@ -13,8 +13,9 @@ training data (on the training set it would be underestimated). Given validation
   per frame, fixed by ``key``; BFGS on the log scales). 000 sec. 5.2 only says the scales are
   fitted on validation data; fitting eq. 30 alone and eq. 29 alone (``s_xx``) counts the motion
   between frames twice, once in each factor of eq. 28, and leaves MRPF a prior that favours
-  standing still. Where the manifold explains the step alone the likelihood is flat in
-  ``s_xx``; those entries are clipped at ``10 s_xx``;
+  standing still. Where one factor of eq. 28 explains the step alone the likelihood is flat
+  in the other factor's scale, which the optimiser can push towards infinity; ``mrpf_s_xx``
+  is clipped at ``10 s_xx`` and ``s_zx`` at ``10 s_zx_residual``;
 - ``s_zx_residual``: eq. 30 fitted alone, the RMS of ``x_t - mu(z_t)`` (the start of the joint
   fit, and the scale for 000 Alg. 1 as printed, ``MRPF(proposal="prior")``, with ``s_xx``);
 - ``s_global``: ``s_xx`` of the global entries (GPAPF, LatentPF);
@@ -84,7 +85,7 @@ def fit_noise_scales(prior: ManifoldPrior, validation, training_starts=None, *, 
     s_zx_start = np.maximum(_rms(np.concatenate(residuals)), floor)
     pairs = [(s[:-1, g:], s[1:, g:]) for s in sequences]
     s_xx_angles, s_zx = fit_transition_scales(pairs, manifold_means, s_xx[g:], s_zx_start, floor=floor)
-    s_xx_angles = np.minimum(s_xx_angles, 10 * s_xx[g:])
+    s_xx_angles, s_zx = np.minimum(s_xx_angles, 10 * s_xx[g:]), np.minimum(s_zx, 10 * s_zx_start)
     train = np.asarray(prior.training_latent, np.float64)
     starts = list(training_starts) if training_starts is not None else [0, len(train)]
     train_steps = np.concatenate([np.diff(train[a:b], axis=0) for a, b in zip(starts[:-1], starts[1:]) if b - a >= 2])
