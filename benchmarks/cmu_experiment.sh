@@ -7,7 +7,7 @@
 #
 #   bash benchmarks/cmu_experiment.sh [OUT]          (RUNS=5 BUDGET=500 by default)
 #
-# Writes OUT/walk and OUT/run (results.json, table.md, error_curves.png, overlay GIFs).
+# Writes OUT/walk and OUT/jog (results.json, table.md, error_curves.png, overlay GIFs).
 set -euo pipefail
 DATA=${DATA:-../shared/data/cmu35}
 OUT=${1:-cmu_experiment}
