@@ -1,8 +1,10 @@
 """jaxtrack: articulated human motion tracking in multi-camera video, in JAX.
 
-Data flows one way: motion data (``io``, ``data``) -> body model (``body``) -> cameras and
-rendering (``camera``, ``render``) -> likelihood (``likelihood``) -> evaluation
-(``evaluation``); ``viz`` draws any stage.
+Data flows one way: motion data (``io``, ``data``) -> pose manifold (``manifold``) -> dynamics
+(``dynamics``) + likelihood (``likelihood``, on ``body``, ``camera``, ``render``) -> particle
+filter (``filters``) -> estimates (``tracking``, the pipeline and the tracker registry) ->
+evaluation (``evaluation``) -> experiment reports (``experiment``); ``viz`` draws any stage and
+``demo`` runs the embedded synthetic default.
 """
 
 from importlib.metadata import PackageNotFoundError, version
@@ -10,10 +12,15 @@ from importlib.metadata import PackageNotFoundError, version
 from . import body as body
 from . import camera as camera
 from . import data as data
+from . import dynamics as dynamics
 from . import evaluation as evaluation
+from . import experiment as experiment
+from . import filters as filters
 from . import io as io
 from . import likelihood as likelihood
+from . import manifold as manifold
 from . import render as render
+from . import tracking as tracking
 from . import viz as viz
 
 try:

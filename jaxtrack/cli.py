@@ -1,4 +1,6 @@
-"""Command-line entry point: ``jaxtrack demo``, ``render SEQUENCE.npz`` and ``convert SOURCE OUT.npz``."""
+"""Command-line entry point: ``jaxtrack demo``, ``render``, ``convert``, ``scene``, ``fit``,
+``plot-latent``, ``experiment`` and ``track``. Tracker names come from the registry
+(``jaxtrack.tracking.available_trackers()``); ``--plugin`` imports a module that registers more."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ import sys
 
 
 def _demo(args) -> int:
-    from ._demo import run_demo, run_likelihood_demo
+    from .demo import run_demo, run_likelihood_demo
 
     if args.likelihood:
         run_likelihood_demo(args.out, seed=args.seed, num_frames=args.frames or 60, particles=args.budget or 500)
@@ -77,6 +79,7 @@ def _fit(args) -> int:
     jax.config.update("jax_enable_x64", True)  # GP training in float64
     import numpy as np
 
+    from .body import GLOBAL_DOFS, joint_angles
     from .io import load_sequence
     from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
 
@@ -87,8 +90,7 @@ def _fit(args) -> int:
             raise ValueError(f"{path}: has no 'pose' key (make one with 'jaxtrack convert')")
         layout = [str(n) for n in seq.pose_layout]
         # The manifold models joint angles only, not the global position and orientation.
-        keep = [i for i, n in enumerate(layout) if not n.startswith("root_")]
-        sequences.append(seq.pose[:, keep])
+        sequences.append(joint_angles(np.asarray(seq.pose)))
         names.append(os.path.basename(path))
     layouts = {len(s[0]) for s in sequences}
     if len(layouts) != 1:
@@ -106,7 +108,7 @@ def _fit(args) -> int:
     else:
         model = make_gpdm(sequences, args.latent_dim)
     fitted, info = fit_model(model, max_steps=args.steps, progress=True)
-    kept_layout = [n for n in layout if not n.startswith("root_")]
+    kept_layout = layout[GLOBAL_DOFS:]
     save_model(args.out, fitted, sequence_starts=starts, extra={"pose_layout": kept_layout, "sequences": names})
     print(f"wrote {args.out}: {type(fitted).__name__}, {Y.shape[0]} frames, objective {info.objective:.6g} after {info.steps} steps")
     return 0
@@ -125,17 +127,22 @@ def _plot_latent(args) -> int:
     return 0
 
 
+def _load_sequences(paths):
+    from .io import load_sequence
+
+    return [load_sequence(p) for p in paths], [os.path.basename(p) for p in paths]
+
+
 def _experiment(args) -> int:
-    from ._experiment import ExperimentConfig, load_sequences, results_table, run_experiment
+    from .experiment import ExperimentConfig, results_table, run_experiment
 
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        mrpf_proposal=args.mrpf_proposal,
     )
-    train, train_names = load_sequences(args.train)
-    validation, validation_names = load_sequences(args.validation)
-    test, test_names = load_sequences(args.test)
+    train, train_names = _load_sequences(args.train)
+    validation, validation_names = _load_sequences(args.validation)
+    test, test_names = _load_sequences(args.test)
     names = {"train": train_names, "validation": validation_names, "test": test_names}
     results = run_experiment(train, validation, test, config, out_dir=args.out, names=names, animations=not args.no_animation)
     print()
@@ -150,14 +157,15 @@ def _track(args) -> int:
     jax.config.update("jax_enable_x64", True)  # the model is float64; the tracker casts to float32
     import numpy as np
 
-    from ._experiment import track_sequence
     from .evaluation import mean_joint_error_mm
     from .io import load_sequence, save_sequence
     from .manifold import load_model
+    from .tracking import get_tracker, track_sequence
 
+    get_tracker(args.method)
     sequence = load_sequence(args.test)
     validation = load_sequence(args.validation)
-    model, header = load_model(args.model, expected_class="BCGPLVM" if args.method == "mrpf" else None)
+    model, header = load_model(args.model)
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test),
@@ -170,11 +178,37 @@ def _track(args) -> int:
     return 0
 
 
-_METHODS = ("sir", "apf", "mrpf", "gpapf", "latentpf")
 _SCALE = 100.0
 
 
+def _methods_help() -> str:
+    from .tracking import available_trackers, get_tracker
+
+    return "; ".join(f"{name}: {get_tracker(name).description}" for name in available_trackers())
+
+
+def load_plugins(argv) -> None:
+    """Import every ``--plugin MODULE`` (a dotted module name or a .py file) named in ``argv``,
+    before the parser is built, so that the trackers it registers are known."""
+    import importlib
+    import importlib.util
+
+    argv = list(argv)
+    plugins = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--plugin"] + [a.split("=", 1)[1] for a in argv if a.startswith("--plugin=")]
+    for plugin in plugins:
+        if plugin.endswith(".py"):
+            if not os.path.isfile(plugin):
+                raise FileNotFoundError(f"--plugin {plugin}: no such file")
+            spec = importlib.util.spec_from_file_location(os.path.splitext(os.path.basename(plugin))[0], plugin)
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+        else:
+            importlib.import_module(plugin)
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from .tracking import PAPER_TRACKERS, available_trackers
+
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
     )
@@ -235,7 +269,10 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--train", nargs="+", required=True, help="training sequence files (pose or joints3d)")
     experiment.add_argument("--validation", nargs="+", required=True, help="validation sequence file(s) for the noise scales")
     experiment.add_argument("--test", nargs="+", required=True, help="test sequence files with silhouettes, cameras and ground truth")
-    experiment.add_argument("--methods", nargs="+", default=list(_METHODS), choices=_METHODS)
+    experiment.add_argument("--methods", nargs="+", default=list(PAPER_TRACKERS), choices=available_trackers(),
+                            help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
+    experiment.add_argument("--plugin", action="append", default=[],
+                            help="a module (dotted name or .py file) to import first; it may register trackers")
     experiment.add_argument("--budget", type=int, default=500, help="likelihood evaluations per frame (default: %(default)s)")
     experiment.add_argument("--layers", type=int, default=5, help="annealing layers of APF and GPAPF (default: %(default)s)")
     experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
@@ -244,8 +281,6 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
     experiment.add_argument("--seed", type=int, default=0)
-    experiment.add_argument("--mrpf-proposal", choices=("product", "prior"), default="product",
-                            help="MRPF draws poses from 000 eq. 28 exactly (product, default) or as 000 Alg. 1 prints it (prior)")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
@@ -254,7 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
     track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (bc-gplvm for mrpf)")
     track.add_argument("--validation", required=True, help="validation sequence file for the noise scales (000 sec. 5.2)")
-    track.add_argument("--method", choices=_METHODS, default="mrpf")
+    track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
+    track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
     track.add_argument("--budget", type=int, default=500)
     track.add_argument("--layers", type=int, default=5)
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
@@ -270,6 +306,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        load_plugins(argv)
+    except (ImportError, OSError, ValueError) as err:
+        print(f"jaxtrack: error: cannot load plugin: {err}", file=sys.stderr)
+        return 2
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -106,6 +106,15 @@ _HUMANEVA_DOFS: tuple[tuple[str, str, tuple[float, float, float], float, float],
     ("neck_twist", "head", _Z, -1.2, 1.2),
 )
 ROOT_TRANSLATION_DOFS: tuple[str, ...] = ("root_x", "root_y", "root_z")
+GLOBAL_DOFS = 6
+"""Leading entries of every pose vector that place the body in the world (root position x, y, z
+in metres, then root yaw, pitch, roll in radians); the rest are joint angles, which is what the
+pose manifolds model (001 sec. 5)."""
+
+
+def joint_angles(poses):
+    """The joint-angle part ``poses[..., GLOBAL_DOFS:]`` of pose vectors (..., D)."""
+    return poses[..., GLOBAL_DOFS:]
 
 
 def humaneva_offsets(limb_lengths: Mapping[str, float] | None = None) -> np.ndarray:

@@ -1,5 +1,10 @@
-"""Observation likelihoods: the bidirectional silhouette likelihood of paper 000 eq. 12."""
+"""Observation likelihoods behind one interface (``AbstractLikelihood``): the bidirectional
+silhouette likelihood of paper 000 eq. 12, sums of likelihoods, and plain functions."""
 
+from ._base import AbstractLikelihood as AbstractLikelihood
+from ._base import FunctionLikelihood as FunctionLikelihood
+from ._base import SumLikelihood as SumLikelihood
+from ._base import as_likelihood as as_likelihood
 from ._silhouette import SilhouetteLikelihood as SilhouetteLikelihood
 from ._silhouette import bidirectional_silhouette_cost as bidirectional_silhouette_cost
 from ._silhouette import check_silhouettes as check_silhouettes

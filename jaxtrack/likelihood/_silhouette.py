@@ -36,6 +36,7 @@ import numpy as np
 from .._custom_types import Array, Float, Int
 from ..body import BodyModel
 from ..camera import CameraRig, image_shape, pixel_grid
+from ._base import AbstractLikelihood
 from ..render import ProjectedCapsules, capsule_support, capsule_union, project_capsules
 
 
@@ -156,7 +157,7 @@ def bidirectional_silhouette_cost(
     return model_unexplained + data_unexplained
 
 
-class SilhouetteLikelihood(eqx.Module):
+class SilhouetteLikelihood(AbstractLikelihood):
     """Multi-view bidirectional silhouette log-likelihood of a batch of poses (000 eq. 12).
 
     Attributes:
@@ -211,9 +212,6 @@ class SilhouetteLikelihood(eqx.Module):
         loglik = -self.scale.astype(dtype) * jnp.mean(cost, axis=-1)
         loglik = jnp.where(jnp.all(caps.in_front, axis=-1), loglik, -jnp.inf)
         return loglik, cost, overflowed
-
-    def __call__(self, poses, observed):
-        return self.log_likelihood(poses, observed)
 
 
 @jax.custom_jvp

@@ -1,5 +1,10 @@
-"""Pose manifolds: PCA, GPLVM, back-constrained GPLVM (kernel or MLP), sparse GPLVM and GPDM (../shared/METHODS.md section 3)."""
+"""Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
+(kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
+manifold precomputed for the trackers (../shared/METHODS.md section 3)."""
 
+from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
+from ._base import AbstractManifold as AbstractManifold
+from ._base import register_manifold as register_manifold
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
 from ._kernels import LinearRBFKernel as LinearRBFKernel
@@ -23,7 +28,8 @@ from ._predictor import GPPredictor as GPPredictor
 from ._sparse import SparseGPLVM as SparseGPLVM
 from ._sparse import make_sparse_gplvm as make_sparse_gplvm
 from ._sparse import sparse_log_marginal as sparse_log_marginal
-from ._inverse import encode as encode
+from ._prior import ManifoldPrior as ManifoldPrior
+from ._prior import make_manifold_prior as make_manifold_prior
 from ._plot import plot_latent as plot_latent
 from ._serialise import ModelFileError as ModelFileError
 from ._serialise import load_model as load_model

@@ -1,7 +1,10 @@
-"""Pose -> latent point: the back-constraint where there is one, otherwise the optimisation of
-paper 003 eq. 5, ``argmin_x ||y - mu(x)||^2 / (2 sigma^2(x)) + D/2 ln sigma^2(x) + 1/2 ||x||^2``,
-solved with BFGS (optimistix), batched over poses and started at the training latent point
-whose pose is nearest."""
+"""Pose -> latent point without a back-constraint: the optimisation of paper 003 eq. 5,
+
+    argmin_z ||y - mu(z)||^2 / (2 sigma^2(z)) + D/2 ln sigma^2(z) + 1/2 ||z||^2
+
+(standardised units, ``sigma^2`` the predictive variance plus the noise), solved with BFGS
+(optimistix), batched over poses and started at the training latent point whose pose is nearest.
+"""
 
 from __future__ import annotations
 
@@ -9,30 +12,30 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 
+from .._custom_types import Array, Float
 from ._kernels import squared_distances
-from ._models import BCGPLVM, predict
+
+ENCODE_TOLERANCE = 1e-7  # BFGS rtol = atol on the objective's scale
 
 
-def encode(model, poses, *, max_steps: int = 200):
-    """Latent points (m, q) for poses (m, D) in pose units."""
-    poses = jnp.asarray(poses, model.data.dtype)
-    if poses.ndim != 2 or poses.shape[1] != model.data.shape[1]:
-        raise ValueError(f"poses must be (m, {model.data.shape[1]}), got {poses.shape}")
-    if isinstance(model, BCGPLVM):
-        return model.encode(poses)
-    train = model.training_latent()
-    standardised = (poses - model.mean) / model.scale
-    nearest = jnp.argmin(squared_distances(standardised, model.data), axis=1)
-    d = poses.shape[1]
+def optimise_latent(
+    predictor, training_latent: Float[Array, "n q"], training_data: Float[Array, "n a"],
+    standardised: Float[Array, "m a"], *, max_steps: int,
+) -> Float[Array, "m q"]:
+    """Latent points (m, q) of standardised poses (m, a) by 003 eq. 5 (module docstring)."""
+    start = training_latent[jnp.argmin(squared_distances(standardised, training_data), axis=1)]
+    noise = predictor.kernel.noise
+    dims = standardised.shape[1]
 
-    def objective(x, y):
-        mean, var = predict(model, x[None])
-        var = var[0] + model.kernel.noise
-        return jnp.sum(((y - mean[0]) / model.scale) ** 2) / (2 * var) + 0.5 * d * jnp.log(var) + 0.5 * jnp.sum(x * x)
+    def objective(z, y):
+        mean, var = predictor(z[None])
+        var = var[0] + noise
+        residual = (y * predictor.scale + predictor.mean - mean[0]) / predictor.scale
+        return jnp.sum(residual**2) / (2 * var) + 0.5 * dims * jnp.log(var) + 0.5 * jnp.sum(z * z)
 
-    solver = optx.BFGS(rtol=1e-8, atol=1e-8)
+    solver = optx.BFGS(rtol=ENCODE_TOLERANCE, atol=ENCODE_TOLERANCE)
 
-    def solve(x0, y):
-        return optx.minimise(objective, solver, x0, args=y, max_steps=max_steps, throw=False).value
+    def solve(z0, y):
+        return optx.minimise(objective, solver, z0, args=y, max_steps=max_steps, throw=False).value
 
-    return jax.vmap(solve)(train[nearest], poses)
+    return jax.vmap(solve)(start, standardised)

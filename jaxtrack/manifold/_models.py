@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
+from ._base import AbstractManifold, register_manifold
 from ._predictor import GPPredictor, full_gp_predictor
 from ._kernels import (
     LinearRBFKernel,
@@ -101,7 +102,8 @@ def _initial_latent(Yn, latent_dim):
     return scores / jnp.std(scores[:, 0])  # unit scale, matching the ||Z||^2 / 2 prior
 
 
-class GPLVM(eqx.Module):
+@register_manifold
+class GPLVM(AbstractManifold):
     """GPLVM with RBF + bias kernel (000 eqs. 13-16).
 
     Attributes:
@@ -129,9 +131,20 @@ class GPLVM(eqx.Module):
         return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
 
     def trainable(self):
-        """Filter spec: True for the leaves fitting changes."""
         spec = jax.tree.map(lambda _: False, self)
         return eqx.tree_at(lambda m: (m.latent, m.kernel), spec, (True, jax.tree.map(lambda _: True, self.kernel)))
+
+    def back_constraint(self):
+        return None
+
+    def header(self) -> dict:
+        return {}
+
+    @classmethod
+    def template(cls, header, dtype):
+        n, d, q = header["frames"], header["dims"], header["latent_dim"]
+        z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
+        return cls(latent=z(n, q), kernel=rbf_bias_kernel(dtype=dtype), data=z(n, d), mean=z(d), scale=z(d))
 
 
 class KernelBackConstraint(eqx.Module):
@@ -171,7 +184,8 @@ class MLPBackConstraint(eqx.Module):
         return jax.tree.map(eqx.is_inexact_array, self)
 
 
-class BCGPLVM(eqx.Module):
+@register_manifold
+class BCGPLVM(AbstractManifold):
     """Back-constrained GPLVM (000 eqs. 21-22): the latent points are ``g(Y)``."""
 
     back: KernelBackConstraint | MLPBackConstraint
@@ -191,10 +205,6 @@ class BCGPLVM(eqx.Module):
         """000 eq. 16 with ``Z = g(Y)``, to be maximised over the back-constraint."""
         return map_objective(self.kernel, self.latent, self.data)
 
-    def encode(self, poses: Float[Array, "m d"]) -> Float[Array, "m q"]:
-        """Poses (in pose units) -> latent points through the back-constraint."""
-        return self.back((poses - self.mean) / self.scale)
-
     def predictor(self) -> GPPredictor:
         return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
 
@@ -202,8 +212,30 @@ class BCGPLVM(eqx.Module):
         spec = jax.tree.map(lambda _: False, self)
         return eqx.tree_at(lambda m: (m.back, m.kernel), spec, (self.back.trainable(), jax.tree.map(lambda _: True, self.kernel)))
 
+    def back_constraint(self):
+        """``g``: standardised poses -> latent points (000 eq. 22)."""
+        return self.back
 
-class GPDM(eqx.Module):
+    def header(self) -> dict:
+        if isinstance(self.back, MLPBackConstraint):
+            return {"back_constraint": "mlp", "mlp_hidden": int(self.back.mlp.width_size), "mlp_depth": int(self.back.mlp.depth)}
+        return {"back_constraint": "kernel"}
+
+    @classmethod
+    def template(cls, header, dtype):
+        n, d, q = header["frames"], header["dims"], header["latent_dim"]
+        z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
+        if header.get("back_constraint", "kernel") == "mlp":
+            # This key only shapes the template; every leaf is then read from the file.
+            mlp = eqx.nn.MLP(d, q, header["mlp_hidden"], header["mlp_depth"], activation=jnp.tanh, key=jax.random.key(0), dtype=dtype)
+            back = MLPBackConstraint(projection=z(d, q), bias=z(q), mlp=mlp)
+        else:
+            back = KernelBackConstraint(weights=z(n, q), bias=z(q), inputs=z(n, d), gamma_x=z())
+        return cls(back=back, kernel=rbf_bias_kernel(dtype=dtype), data=z(n, d), mean=z(d), scale=z(d))
+
+
+@register_manifold
+class GPDM(AbstractManifold):
     """Gaussian process dynamical model (001 eqs. 5-11).
 
     Attributes:
@@ -264,6 +296,21 @@ class GPDM(eqx.Module):
             lambda m: (m.latent, m.kernel, m.dynamics, m.log_w),
             spec,
             (True, jax.tree.map(lambda _: True, self.kernel), jax.tree.map(lambda _: True, self.dynamics), True),
+        )
+
+    def back_constraint(self):
+        return None
+
+    def header(self) -> dict:
+        return {"sequence_starts": [int(s) for s in self.sequence_starts]}
+
+    @classmethod
+    def template(cls, header, dtype):
+        n, d, q = header["frames"], header["dims"], header["latent_dim"]
+        z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
+        return cls(
+            latent=z(n, q), kernel=rbf_bias_kernel(dtype=dtype), dynamics=linear_rbf_kernel(dtype=dtype), log_w=z(d),
+            data=z(n, d), mean=z(d), scale=z(d), sequence_starts=tuple(header["sequence_starts"]),
         )
 
 

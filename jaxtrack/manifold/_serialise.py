@@ -12,52 +12,21 @@ import json
 import os
 
 import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from ._kernels import linear_rbf_kernel, rbf_bias_kernel
-from ._models import BCGPLVM, GPDM, GPLVM, KernelBackConstraint, MLPBackConstraint
-from ._sparse import SparseGPLVM
+from ._base import MANIFOLD_CLASSES, AbstractManifold
 
 FORMAT = "jaxtrack-manifold"
 VERSION = 1
-CLASSES = {"GPLVM": GPLVM, "BCGPLVM": BCGPLVM, "GPDM": GPDM, "SparseGPLVM": SparseGPLVM}
 
 
 class ModelFileError(ValueError):
     """A model file that cannot be loaded (wrong format, version or class)."""
 
 
-def _template(header, dtype):
-    name, n, d, q = header["class"], header["frames"], header["dims"], header["latent_dim"]
-    z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
-    kernel = rbf_bias_kernel(dtype=dtype)
-    if name == "GPLVM":
-        return GPLVM(latent=z(n, q), kernel=kernel, data=z(n, d), mean=z(d), scale=z(d))
-    if name == "SparseGPLVM":
-        return SparseGPLVM(
-            latent=z(n, q), inducing=z(header["inducing"], q), kernel=kernel, data=z(n, d), mean=z(d), scale=z(d),
-            approximation=header["approximation"],
-        )
-    if name == "BCGPLVM":
-        if header.get("back_constraint", "kernel") == "mlp":
-            # The key only shapes the template; every leaf is then read from the file.
-            mlp = eqx.nn.MLP(d, q, header["mlp_hidden"], header["mlp_depth"], activation=jnp.tanh, key=jax.random.key(0), dtype=dtype)
-            back = MLPBackConstraint(projection=z(d, q), bias=z(q), mlp=mlp)
-        else:
-            back = KernelBackConstraint(weights=z(n, q), bias=z(q), inputs=z(n, d), gamma_x=z())
-        return BCGPLVM(back=back, kernel=kernel, data=z(n, d), mean=z(d), scale=z(d))
-    starts = header["sequence_starts"]
-    return GPDM(
-        latent=z(n, q), kernel=kernel, dynamics=linear_rbf_kernel(dtype=dtype), log_w=z(d), data=z(n, d),
-        mean=z(d), scale=z(d), sequence_starts=tuple(starts),
-    )
-
-
 def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: dict | None = None) -> None:
-    """Write a fitted ``GPLVM``, ``BCGPLVM``, ``SparseGPLVM`` or ``GPDM`` with everything needed
-    to use it.
+    """Write a fitted manifold (any registered ``AbstractManifold``: ``GPLVM``, ``BCGPLVM``,
+    ``SparseGPLVM``, ``GPDM``) with everything needed to use it.
 
     Args:
         sequence_starts: first frame of each training sequence, ending with N (for plots);
@@ -65,12 +34,12 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
         extra: JSON-serialisable metadata (e.g. the pose layout the data came from).
     """
     name = type(model).__name__
-    if name not in CLASSES:
-        raise TypeError(f"cannot save a {name}; saveable models are {sorted(CLASSES)}")
+    if not isinstance(model, AbstractManifold) or MANIFOLD_CLASSES.get(name) is not type(model):
+        raise TypeError(f"cannot save a {name}; saveable models are {sorted(MANIFOLD_CLASSES)}")
     n, d = model.data.shape
-    q = model.training_latent().shape[1]
+    q = model.latent_dim
     if sequence_starts is None:
-        sequence_starts = model.sequence_starts if isinstance(model, GPDM) else (0, n)
+        sequence_starts = model.header().get("sequence_starts", (0, n))
     header = {
         "format": FORMAT,
         "version": VERSION,
@@ -82,13 +51,7 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
         "sequence_starts": [int(s) for s in sequence_starts],
         "extra": extra or {},
     }
-    if isinstance(model, SparseGPLVM):
-        header.update(inducing=int(model.inducing.shape[0]), approximation=model.approximation)
-    if isinstance(model, BCGPLVM):
-        if isinstance(model.back, MLPBackConstraint):
-            header.update(back_constraint="mlp", mlp_hidden=int(model.back.mlp.width_size), mlp_depth=int(model.back.mlp.depth))
-        else:
-            header.update(back_constraint="kernel")
+    header.update(model.header())
     with open(path, "wb") as handle:
         handle.write((json.dumps(header) + "\n").encode())
         eqx.tree_serialise_leaves(handle, model)
@@ -118,11 +81,11 @@ def load_model(path: str | os.PathLike, expected_class: str | None = None):
     if header.get("version") != VERSION:
         raise ModelFileError(f"{os.fspath(path)}: format version {header.get('version')}, this jaxtrack reads version {VERSION}")
     name = header.get("class")
-    if name not in CLASSES:
+    if name not in MANIFOLD_CLASSES:
         raise ModelFileError(f"{os.fspath(path)}: unknown model class {name!r}")
     if expected_class is not None and name != expected_class:
         raise ModelFileError(f"{os.fspath(path)}: holds a {name}, but a {expected_class} is needed here")
-    template = _template(header, np.dtype(header["dtype"]))
+    template = MANIFOLD_CLASSES[name].template(header, np.dtype(header["dtype"]))
     with open(path, "rb") as handle:
         handle.readline()
         model = eqx.tree_deserialise_leaves(handle, template)

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
+from ._base import AbstractManifold, register_manifold
 from ._kernels import RBFBiasKernel, rbf_bias_kernel, safe_cholesky
 from ._predictor import GPPredictor
 
@@ -54,7 +55,8 @@ def sparse_log_marginal(kernel: RBFBiasKernel, inducing, latent, Y, approximatio
     return value
 
 
-class SparseGPLVM(eqx.Module):
+@register_manifold
+class SparseGPLVM(AbstractManifold):
     """GPLVM with M inducing points and the collapsed bound of the module docstring.
 
     Attributes:
@@ -83,6 +85,21 @@ class SparseGPLVM(eqx.Module):
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
         return eqx.tree_at(lambda m: (m.latent, m.inducing, m.kernel), spec, (True, True, jax.tree.map(lambda _: True, self.kernel)))
+
+    def back_constraint(self):
+        return None
+
+    def header(self) -> dict:
+        return {"inducing": int(self.inducing.shape[0]), "approximation": self.approximation}
+
+    @classmethod
+    def template(cls, header, dtype):
+        n, d, q = header["frames"], header["dims"], header["latent_dim"]
+        z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
+        return cls(
+            latent=z(n, q), inducing=z(header["inducing"], q), kernel=rbf_bias_kernel(dtype=dtype), data=z(n, d), mean=z(d),
+            scale=z(d), approximation=header["approximation"],
+        )
 
     def predictor(self) -> GPPredictor:
         """Predictive mean ``k(z, U) L^-T LB^-T c / sigma`` and variance

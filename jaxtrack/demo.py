@@ -1,7 +1,7 @@
 """``jaxtrack demo``: the pipeline end to end on the embedded synthetic default.
 
 ``run_demo`` (the default) is a small version of the experiment of 000 sec. 6: synthetic walks
-and jogs of two subjects train a BC-GPLVM, another pair of sequences fits the noise scales, and
+and jogs of two subjects train a BC-GPLVM, another pair of sequences fits the trackers' dynamics, and
 SIR, APF, MRPF, GPAPF and LatentPF track two rendered test scenes; it prints the table of
 000 Table 1 and writes the results, error curves and an overlay animation.
 
@@ -192,8 +192,13 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
 
 def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40, budget: int = 300, runs: int = 2,
              methods=None, verbose: bool = True):
-    """The small experiment (module docstring); returns ``(results, paths)``."""
-    from ._experiment import METHODS, ExperimentConfig, results_table, run_experiment, write_outputs
+    """The small experiment (module docstring); returns ``(results, paths)``.
+
+    Args:
+        methods: registered tracker names (default: the papers' five).
+    """
+    from .experiment import ExperimentConfig, results_table, run_experiment, write_outputs
+    from .tracking import PAPER_TRACKERS
 
     say = print if verbose else (lambda *a, **k: None)
     start = time.perf_counter()
@@ -206,8 +211,8 @@ def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40,
         path = os.path.join(out_dir, name.replace(" ", "_") + ".npz")
         save_sequence(path, seq)
     test = [load_sequence(os.path.join(out_dir, n.replace(" ", "_") + ".npz")) for n in names["test"]]
-    config = ExperimentConfig(methods=tuple(methods or METHODS), budget=budget, runs=runs, fit_steps=100, seed=seed)
-    say(f"[2/4] fitting a BC-GPLVM (000 eqs. 21-22) and the noise scales; then {', '.join(config.methods)} with "
+    config = ExperimentConfig(methods=tuple(methods or PAPER_TRACKERS), budget=budget, runs=runs, fit_steps=100, seed=seed)
+    say(f"[2/4] fitting a BC-GPLVM (000 eqs. 21-22) and each tracker's dynamics; then {', '.join(config.methods)} with "
         f"{budget} likelihood evaluations per frame, {runs} runs each")
     results = run_experiment(train, validation, test, config, names=names, progress=verbose)
     say("[3/4] joint error (000 eq. 31), mm, mean (std) over runs:\n")

@@ -1,0 +1,18 @@
+"""Dynamics: how particle states move between frames (``AbstractDynamics``), each with the
+function that fits it to motion data: the pose random walk of SIR and APF, the latent random
+walk of GPAPF and 003's latent Condensation, and MRPF's manifold-regularised transition
+(000 eqs. 27-30, both proposals)."""
+
+from ._base import AbstractDynamics as AbstractDynamics
+from ._base import as_scale_vector as as_scale_vector
+from ._base import gaussian_step as gaussian_step
+from ._latent_random_walk import LatentRandomWalk as LatentRandomWalk
+from ._latent_random_walk import fit_latent_random_walk as fit_latent_random_walk
+from ._mrpf import MRPF_PROPOSALS as MRPF_PROPOSALS
+from ._mrpf import ManifoldRegularisedTransition as ManifoldRegularisedTransition
+from ._mrpf import fit_mrpf_transition as fit_mrpf_transition
+from ._mrpf import fit_transition_scales as fit_transition_scales
+from ._mrpf import transition_log_likelihood as transition_log_likelihood
+from ._random_walk import PoseRandomWalk as PoseRandomWalk
+from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
+from ._random_walk import make_pose_random_walk as make_pose_random_walk

@@ -1,0 +1,100 @@
+"""The dynamics interface: how a particle's state moves from one frame to the next, and the
+checks and statistics the fitting functions share.
+
+A dynamics module owns the particle state space. ``init`` makes the state of a pose (the pose
+itself, or the global entries plus a latent point), ``to_pose`` maps states back to poses for
+the likelihood, ``propose`` draws the next states with the log importance weight that keeps
+the filter exact, and ``perturb`` is the local move an annealing layer makes. Each concrete
+dynamics comes with a ``fit_*`` function that estimates its parameters from motion data and
+returns the fitted module.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax
+import numpy as np
+
+from .._custom_types import Array, Float, PRNGKeyArray
+
+
+class AbstractDynamics(eqx.Module):
+    """A transition model ``p(s_t | s_{t-1})`` over particle states (S numbers each)."""
+
+    @abc.abstractmethod
+    def init(self, pose: Float[Array, " dofs"]) -> Float[Array, " state"]:
+        """The state of one pose (000 Alg. 1 line 1 then duplicates it N times)."""
+
+    @abc.abstractmethod
+    def to_pose(self, states: Float[Array, "particles state"]) -> Float[Array, "particles dofs"]:
+        """The poses of N states (what the likelihood scores)."""
+
+    @abc.abstractmethod
+    def propose(
+        self, key: PRNGKeyArray, previous: Float[Array, "particles state"]
+    ) -> tuple[Float[Array, "particles state"], Float[Array, " particles"]]:
+        """Draw ``s_t ~ q(s_t | s_{t-1})`` for each of N particles, and the log weight
+        ``ln p(s_t | s_{t-1}) / q(s_t | s_{t-1})`` (up to a constant shared by the particles)
+        that corrects for drawing from ``q`` instead of the transition: zeros when the draw is
+        from the transition itself."""
+
+    @abc.abstractmethod
+    def perturb(
+        self, key: PRNGKeyArray, states: Float[Array, "particles state"], factor: Float[Array, ""]
+    ) -> Float[Array, "particles state"]:
+        """A zero-mean local move: the transition's noise, standard deviation times ``factor``,
+        without its drift (the diffusion of annealing layer m, factor ``decay^(m/2)``)."""
+
+
+def gaussian_step(key: PRNGKeyArray, states: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, "n s"]:
+    """``s + N(0, diag(scales^2))`` for every particle."""
+    return states + scales * jax.random.normal(key, states.shape, states.dtype)
+
+
+def check_scale_vector(name: str, scales, size: int | None):
+    """Raise ``ValueError`` unless ``scales`` is a (size,) vector (any length for None) of
+    finite non-negative numbers; values are checked only when concrete (not under jit)."""
+    shape = np.shape(scales)
+    if len(shape) != 1 or (size is not None and shape != (size,)):
+        raise ValueError(f"{name} must have shape ({'D' if size is None else size},), got {shape}")
+    if isinstance(scales, jax.core.Tracer):
+        return
+    values = np.asarray(scales)
+    if not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError(f"{name} must be finite and non-negative, got {values}")
+
+
+def as_scale_vector(name: str, scales, size: int, dtype=None) -> np.ndarray:
+    """A (size,) float64 NumPy vector from a scalar or a vector, checked as in
+    ``check_scale_vector``; with ``dtype``, values beyond its range are clipped to its largest
+    finite number (a scale that large is flat; casting would overflow to inf)."""
+    values = np.asarray(scales, np.float64)
+    values = np.broadcast_to(values, (size,)).copy() if values.ndim == 0 else values
+    check_scale_vector(name, values, size)
+    if dtype is not None:
+        values = np.minimum(values, float(np.finfo(np.dtype(dtype)).max))
+    return values
+
+
+def motion_sequences(sequences, dims: int, name: str = "validation poses") -> list[np.ndarray]:
+    """One (T, D) pose array or a list of them as float64 arrays with T >= 2, finite;
+    raises ``ValueError`` naming the sequence otherwise."""
+    if isinstance(sequences, np.ndarray) and sequences.ndim == 2:
+        sequences = [sequences]
+    arrays = [np.asarray(s, np.float64) for s in sequences]
+    if not arrays:
+        raise ValueError(f"{name}: need at least one sequence")
+    for i, s in enumerate(arrays):
+        if s.ndim != 2 or s.shape[1] != dims or s.shape[0] < 2:
+            raise ValueError(f"{name} must be (T >= 2, {dims}) arrays, got {s.shape} for sequence {i}")
+        if not np.all(np.isfinite(s)):
+            raise ValueError(f"{name} contain NaN or infinite values (sequence {i})")
+    return arrays
+
+
+def rms_step(sequences: list[np.ndarray], floor: float) -> np.ndarray:
+    """Per entry, the RMS of the frame-to-frame steps within each sequence, at least ``floor``."""
+    steps = np.concatenate([np.diff(s, axis=0) for s in sequences])
+    return np.maximum(np.sqrt(np.mean(np.square(steps), axis=0)), floor)

@@ -1,0 +1,196 @@
+"""The transition of the manifold regularised particle filter (000 eqs. 27-30) and its fitting.
+
+``z_t ~ N(g(x_{t-1}), diag(s_xz^2))`` (eq. 27, g the back-constraint) and
+``p(x_t | x_{t-1}, z_t) ∝ N(x_t | x_{t-1}, diag(s_xx^2)) N(x_t^a | mu(z_t), diag(s_zx^2))``
+(eq. 28; ``x^a`` the joint angles the manifold covers; the global entries follow eq. 29 only).
+
+Fitting (000 sec. 5.2: on a validation set separate from the manifold's training data):
+
+- ``s_xx`` (eq. 29): the RMS frame-to-frame step per pose entry;
+- ``s_xz`` (eq. 27): the RMS step of ``g(x_t)`` per latent dimension;
+- ``s_zx`` (eq. 30) and the joint-angle entries of ``s_xx``, for the exact ("product") draw:
+  fitted jointly by maximising the validation likelihood of the whole transition,
+  ``p(x_t | x_{t-1}) = E_{z_t} [p(x_t | x_{t-1}, z_t)]`` with ``p(x_t | x_{t-1}, z_t)`` eq. 28
+  normalised over ``x_t`` (``samples`` latent draws per frame fixed by ``key``; BFGS on the log
+  scales). Fitting eq. 30 alone and eq. 29 alone counts the motion between frames twice, once in
+  each factor, and leaves a prior that favours standing still. Where one factor explains the step
+  alone the likelihood is flat in the other factor's scale, which the optimiser can push towards
+  infinity; the fitted scales are clipped at 10 times their separate fits.
+- for 000 Alg. 1 as printed ("prior"): ``s_zx`` fitted alone, the RMS of ``x_t - mu(z_t)``,
+  with the eq. 29 ``s_xx``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+from jax.scipy.special import logsumexp
+
+from .._custom_types import Array, Float, PRNGKeyArray
+from ..manifold import ManifoldPrior
+from ._base import AbstractDynamics, check_scale_vector, gaussian_step, motion_sequences, rms_step
+
+LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
+MRPF_PROPOSALS = ("product", "prior")
+
+
+class ManifoldRegularisedTransition(AbstractDynamics):
+    """MRPF's transition (module docstring); the state is the pose.
+
+    ``proposal`` picks how ``x_t`` is drawn after ``z_t``:
+
+    - ``"product"`` (default): exactly from eq. 28 normalised over x_t, a Gaussian with mean
+      ``(s_zx^2 x_{t-1} + s_xx^2 mu(z_t)) / (s_xx^2 + s_zx^2)`` and variance
+      ``s_xx^2 s_zx^2 / (s_xx^2 + s_zx^2)``; the weight of eq. 7 is then 1 and eq. 11 leaves the
+      image likelihood. The paper calls this draw intractable in general (000 sec. 3); with the
+      Gaussian models of sec. 5.2 it is not.
+    - ``"prior"`` (000 Alg. 1 as printed): ``x_t ~ N(x_{t-1}, diag(s_xx^2))`` (eq. 29), log weight
+      ``ln N(x_t^a | mu(z_t), diag(s_zx^2))`` up to a constant (eq. 30). Eq. 30 drops eq. 28's
+      normaliser ``N(x_{t-1}^a | mu(z_t), diag(s_xx^2 + s_zx^2))``, which depends on the
+      particle: it rewards latent draws whose mean stays near the previous pose.
+
+    With ``s_zx`` very large both reduce to ``PoseRandomWalk(s_xx)``. ``perturb`` is the eq. 29
+    random walk with ``s_xx`` scaled.
+
+    Attributes:
+        manifold: a manifold with a back-constraint (BC-GPLVM).
+        s_xx: (D,) eq. 29 scales; s_xz: (q,) eq. 27 scales; s_zx: (Da,) eq. 30 scales.
+    """
+
+    manifold: ManifoldPrior
+    s_xx: Float[Array, " dofs"]
+    s_xz: Float[Array, " q"]
+    s_zx: Float[Array, " a"]
+    proposal: str = eqx.field(static=True, default="product")
+
+    def __check_init__(self):
+        if self.proposal not in MRPF_PROPOSALS:
+            raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {self.proposal!r}")
+        if not self.manifold.has_back_constraint:
+            raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
+        check_scale_vector("s_xx", self.s_xx, self.manifold.pose_dim)
+        check_scale_vector("s_xz", self.s_xz, self.manifold.latent_dim)
+        check_scale_vector("s_zx", self.s_zx, self.manifold.pose_dim - self.manifold.global_dims)
+
+    def init(self, pose):
+        return pose.astype(self.s_xx.dtype)
+
+    def to_pose(self, states):
+        return states
+
+    def _product(self, previous, manifold_mean):
+        """Mean (N, D) and standard deviation (D,) of eq. 28 normalised over x_t."""
+        g = self.manifold.global_dims
+        s_xx = self.s_xx[g:]
+        pull = 1.0 / (1.0 + (self.s_zx / s_xx) ** 2)  # s_xx^2 / (s_xx^2 + s_zx^2), finite for any s_zx (inf: 0)
+        angles = previous[:, g:] + pull * (manifold_mean - previous[:, g:])
+        return jnp.concatenate([previous[:, :g], angles], axis=1), jnp.concatenate([self.s_xx[:g], s_xx * jnp.sqrt(1.0 - pull)])
+
+    def propose(self, key, previous):
+        g = self.manifold.global_dims
+        latent = gaussian_step(jax.random.fold_in(key, LATENT_STREAM), self.manifold.encode(previous[:, g:]), self.s_xz)
+        manifold_mean = self.manifold.decode_mean(latent)
+        if self.proposal == "prior":
+            particles = gaussian_step(key, previous, self.s_xx)
+            return particles, -0.5 * jnp.sum(((particles[:, g:] - manifold_mean) / self.s_zx) ** 2, axis=1)
+        particles = gaussian_step(key, *self._product(previous, manifold_mean))
+        return particles, jnp.zeros(previous.shape[0], previous.dtype)
+
+    def perturb(self, key, states, factor):
+        return gaussian_step(key, states, self.s_xx * factor)
+
+
+def fit_mrpf_transition(
+    manifold: ManifoldPrior, validation, *, key: PRNGKeyArray, proposal: str = "product", samples: int = 64,
+    floor: float = 1e-3,
+) -> ManifoldRegularisedTransition:
+    """Fit MRPF's scales on validation motion (module docstring).
+
+    Args:
+        manifold: a back-constrained manifold prior (fitted on the training sequences).
+        validation: one (T, D) pose array or a list of them, T >= 2 each.
+        key: PRNG key of the latent draws of the Monte-Carlo transition likelihood (the fit is
+            a deterministic function of the data and the key).
+        proposal: "product" (joint maximum-likelihood fit) or "prior" (separate fits).
+        samples: latent draws per validation frame.
+        floor: smallest scale, so that no entry is deterministic.
+
+    Returns:
+        the fitted ``ManifoldRegularisedTransition`` (in the manifold's dtype).
+    """
+    if proposal not in MRPF_PROPOSALS:
+        raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {proposal!r}")
+    if not manifold.has_back_constraint:
+        raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
+    sequences = motion_sequences(validation, manifold.pose_dim)
+    g = manifold.global_dims
+    dtype = manifold.training_latent.dtype
+    s_xx = rms_step(sequences, floor)
+    latent = [np.asarray(manifold.encode(jnp.asarray(s[:, g:], dtype)), np.float64) for s in sequences]
+    s_xz = rms_step(latent, floor)
+    residuals, manifold_means = [], []
+    for i, (s, z) in enumerate(zip(sequences, latent)):
+        eps = np.asarray(jax.random.normal(jax.random.fold_in(key, i), (samples,) + z[:-1].shape), np.float64)
+        draws = (z[:-1][None] + s_xz * eps).reshape(-1, z.shape[1])
+        mean = np.asarray(manifold.decode_mean(jnp.asarray(draws, dtype)), np.float64).reshape(samples, len(s) - 1, -1)
+        residuals.append((s[1:, g:][None] - mean).reshape(-1, mean.shape[-1]))
+        manifold_means.append(mean)
+    s_zx_alone = np.maximum(np.sqrt(np.mean(np.square(np.concatenate(residuals)), axis=0)), floor)
+    if proposal == "product":
+        pairs = [(s[:-1, g:], s[1:, g:]) for s in sequences]
+        s_xx_angles, s_zx = fit_transition_scales(pairs, manifold_means, s_xx[g:], s_zx_alone, floor=floor)
+        s_xx = np.concatenate([s_xx[:g], np.minimum(s_xx_angles, 10 * s_xx[g:])])
+        s_zx = np.minimum(s_zx, 10 * s_zx_alone)
+    else:
+        s_zx = s_zx_alone
+    return ManifoldRegularisedTransition(
+        manifold=manifold, s_xx=jnp.asarray(s_xx, dtype), s_xz=jnp.asarray(s_xz, dtype), s_zx=jnp.asarray(s_zx, dtype),
+        proposal=proposal,
+    )
+
+
+def transition_log_likelihood(
+    previous: Float[Array, "t a"], current: Float[Array, "t a"], manifold_means: Float[Array, "k t a"],
+    s_xx: Float[Array, " a"], s_zx: Float[Array, " a"],
+) -> Float[Array, ""]:
+    """Mean log-density of MRPF's transition (000 eq. 28 with the latent draws of eq. 27) at
+    observed joint-angle pairs, by Monte Carlo over K latent draws ``z_t^k ~ p(z_t | x_{t-1})``
+    (``manifold_means`` holds ``mu(z_t^k)``):
+    ``1/T sum_t ln 1/K sum_k N(x_t | m_k, diag(v))`` with eq. 28 normalised over ``x_t``, mean
+    ``m_k = (s_zx^2 x_{t-1} + s_xx^2 mu_k) / (s_xx^2 + s_zx^2)``, variance
+    ``v = s_xx^2 s_zx^2 / (s_xx^2 + s_zx^2)``."""
+    var_xx, var_zx = s_xx**2, s_zx**2
+    total = var_xx + var_zx
+    mean = (var_zx * previous[None] + var_xx * manifold_means) / total
+    var = var_xx * var_zx / total
+    log_density = -0.5 * jnp.sum((current[None] - mean) ** 2 / var + jnp.log(2 * jnp.pi * var), axis=-1)  # (K, T)
+    k = manifold_means.shape[0]
+    return jnp.mean(logsumexp(log_density, axis=0) - jnp.log(k))
+
+
+def fit_transition_scales(pairs, manifold_means, s_xx_start, s_zx_start, *, floor: float = 1e-3, max_steps: int = 500):
+    """Maximum-likelihood ``(s_xx, s_zx)`` of MRPF's transition (``transition_log_likelihood``)
+    over pose pairs ``[(previous (T, A), current (T, A)), ...]`` with ``manifold_means``
+    ``[(K, T, A), ...]``, by BFGS on log scales with a smooth floor
+    ``s = sqrt(floor^2 + exp(2 theta))``. Returns two (A,) float64 NumPy arrays."""
+    previous = jnp.concatenate([jnp.asarray(a) for a, _ in pairs])
+    current = jnp.concatenate([jnp.asarray(b) for _, b in pairs])
+    means = jnp.concatenate([jnp.asarray(m) for m in manifold_means], axis=1)
+    dims = previous.shape[1]
+
+    def unpack(theta):
+        scales = jnp.sqrt(floor**2 + jnp.exp(2 * theta))
+        return scales[:dims], scales[dims:]
+
+    def loss(theta, _):
+        return -transition_log_likelihood(previous, current, means, *unpack(theta))
+
+    start_scales = jnp.concatenate([jnp.asarray(s_xx_start), jnp.asarray(s_zx_start)])
+    start = jnp.log(jnp.sqrt(jnp.maximum(start_scales**2 - floor**2, floor**2)))
+    solution = optx.minimise(loss, optx.BFGS(rtol=1e-7, atol=1e-7), start.astype(previous.dtype), max_steps=max_steps, throw=False)
+    theta = jnp.where(jnp.isfinite(loss(solution.value, None)), solution.value, start)
+    s_xx, s_zx = (np.asarray(v, np.float64) for v in unpack(jax.lax.stop_gradient(theta)))
+    return s_xx, s_zx

@@ -1,0 +1,57 @@
+"""Settings of the HumanEva-style experiment (defaults: paper 000 sec. 6.1)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..tracking import PAPER_TRACKERS, Budget, get_tracker
+
+
+@dataclasses.dataclass(frozen=True)
+class ExperimentConfig:
+    """Attributes:
+        methods: registered tracker names (``jaxtrack.tracking.available_trackers()``).
+        budget: likelihood evaluations per frame (one-layer trackers: that many particles;
+            annealed ones: ``layers`` layers of ``budget / layers``).
+        layers: annealing layers of the annealed trackers (GPAPF's last one is its full-pose
+            layer).
+        runs: runs per tracker, each with its own key.
+        latent_dim: dimension of the BC-GPLVM latent space.
+        fit_steps: L-BFGS iterations for the manifold.
+        likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
+        frames: track only the first ``frames`` frames of each test sequence (None: all).
+        seed: base PRNG seed; tracker ``i`` of the registry runs with keys folded from
+            ``fold_in(key(seed), i)``.
+    """
+
+    methods: tuple[str, ...] = PAPER_TRACKERS
+    budget: int = 500
+    layers: int = 5
+    runs: int = 5
+    latent_dim: int = 2
+    fit_steps: int = 300
+    likelihood_scale: float = 100.0
+    frames: int | None = None
+    seed: int = 0
+
+    def __post_init__(self):
+        if not self.methods:
+            raise ValueError("the experiment needs at least one tracker in methods")
+        if len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"methods lists a tracker twice: {list(self.methods)}")
+        recipes = [get_tracker(m) for m in self.methods]  # unknown names: ValueError listing the registered ones
+        if self.runs < 1:
+            raise ValueError(f"runs must be positive, got {self.runs}")
+        if self.frames is not None and self.frames < 1:
+            raise ValueError(f"frames must be positive, got {self.frames}")
+        if self.latent_dim < 1 or self.fit_steps < 1:
+            raise ValueError("latent_dim and fit_steps must be positive")
+        if not self.likelihood_scale > 0:
+            raise ValueError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
+        budget = Budget(self.budget, self.layers)
+        for recipe in recipes:
+            recipe.check_budget(budget)
+
+    @property
+    def needs_manifold(self) -> bool:
+        return any(get_tracker(m).needs_manifold for m in self.methods)

@@ -1,0 +1,162 @@
+"""The HumanEva-style experiment of paper 000 sec. 6 (../shared/METHODS.md section 4).
+
+Inputs are sequences: training sequences (poses for the manifold), validation sequences (the
+trackers' dynamics, 000 sec. 5.2), and test sequences with silhouettes and cameras. Every
+tracker's dynamics are fitted once; then each tracker runs ``runs`` times on every test
+sequence with different keys from the first test frame's ground truth. The error is
+000 eq. 31 in mm, with per-frame curves (000 Fig. 6) and per-part errors (000 Table 2).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import equinox as eqx
+import jax
+import numpy as np
+
+from ..body import part_group_indices
+from ..evaluation import mean_joint_error_mm, per_frame_error_mm, per_group_error_mm
+from ..likelihood import suggest_window
+from ..manifold import ManifoldPrior
+from ..tracking import (
+    Budget,
+    build_tracker,
+    check_test_sequence,
+    fit_manifold,
+    fit_tracker,
+    get_tracker,
+    motion_data,
+    prepare_test,
+    sequence_poses,
+    track,
+    tracker_index,
+    tracker_keys,
+)
+from ._config import ExperimentConfig
+from ._report import method_label, write_outputs
+
+
+def dynamics_parameters(fitted) -> dict:
+    """The fitted parameters of a tracker's dynamics, for results.json: every small array field
+    of its modules (the manifold they share is described once, elsewhere)."""
+    out = {}
+
+    def visit(node, prefix):
+        if isinstance(node, ManifoldPrior):
+            return
+        if isinstance(node, (tuple, list)):
+            for i, child in enumerate(node):
+                visit(child, f"{prefix}{i}.")
+            return
+        if isinstance(node, eqx.Module):
+            out[f"{prefix}class"] = type(node).__name__
+            for field in dataclasses.fields(node):
+                value = getattr(node, field.name)
+                if eqx.is_array(value) and value.ndim <= 1:
+                    out[prefix + field.name] = np.asarray(value, np.float64).round(6).tolist()
+                elif isinstance(value, str):
+                    out[prefix + field.name] = value
+                else:
+                    visit(value, f"{prefix}{field.name}.")
+
+    visit(fitted, "")
+    return out
+
+
+def shared_window(test, frames):
+    """One likelihood window for all test sequences when their images agree in size, so each
+    tracker compiles once (the window is a static shape); "auto" (per sequence) otherwise."""
+    sizes = {tuple(np.asarray(s.silhouettes.shape[-2:])) for s in test}
+    if len(sizes) != 1:
+        return "auto"
+    windows = [suggest_window((s.silhouettes[:, :frames] > 0).astype(np.uint8)) for s in test]
+    return max(w[0] for w in windows), max(w[1] for w in windows)
+
+
+def run_experiment(train, validation, test, config: ExperimentConfig = ExperimentConfig(), *, out_dir=None,
+                   names=None, progress=True, animations=True) -> dict:
+    """Run the experiment; returns the results (and writes them under ``out_dir`` if given).
+
+    Args:
+        train, validation, test: lists of ``Sequence``.
+        config: the settings; ``config.methods`` are registered tracker names.
+        names: dict with lists "train", "validation", "test" of display names (file names).
+
+    Returns:
+        a dict with "config", "manifold", "dynamics" (each tracker's fitted parameters),
+        "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
+        per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
+        and "estimates" (first run's poses and joints).
+    """
+    say = print if progress else (lambda *a, **k: None)
+    names = names or {}
+    train_names = names.get("train") or [f"train{i}" for i in range(len(train))]
+    validation_names = names.get("validation") or [f"validation{i}" for i in range(len(validation))]
+    test_names = names.get("test") or [f"test{i}" for i in range(len(test))]
+    if not train or not validation or not test:
+        raise ValueError("the experiment needs at least one training, one validation and one test sequence")
+    ik_key = jax.random.key(config.seed)
+    for seq, name in zip(test, test_names):
+        check_test_sequence(seq, name)
+    train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
+    validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
+
+    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "sequences": {}, "estimates": {}}
+    model, starts = None, None
+    if config.needs_manifold:
+        start = time.perf_counter()
+        model, fit_info, starts = fit_manifold(train_poses, config.latent_dim, config.fit_steps, progress=progress)
+        fit_s = time.perf_counter() - start
+        say(f"manifold: BC-GPLVM on {sum(map(len, train_poses))} training frames, latent dim {config.latent_dim}, "
+            f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
+        results["manifold"] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "objective": fit_info.objective,
+                               "steps": fit_info.steps, "fit_s": fit_s}
+    motion = motion_data(train_poses, validation_poses, model, starts)
+    fitted, run_roots = {}, {}
+    for method in config.methods:
+        fit_key, run_roots[method] = tracker_keys(config.seed, tracker_index(method))
+        fitted[method] = fit_tracker(get_tracker(method), fit_key, motion)
+        results["dynamics"][method] = dynamics_parameters(fitted[method])
+
+    budget = Budget(config.budget, config.layers)
+    window = shared_window(test, config.frames)
+    for seq, name in zip(test, test_names):
+        scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window)
+        groups = part_group_indices(scene.body.skeleton)
+        per_method = {}
+        for method in config.methods:
+            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget)
+            errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
+            for run in range(config.runs):
+                start = time.perf_counter()
+                poses, joints, info = track(tracker, jax.random.fold_in(run_roots[method], run), scene)
+                times.append(time.perf_counter() - start)
+                errors.append(float(mean_joint_error_mm(joints, scene.truth_joints)))
+                curves.append(np.asarray(per_frame_error_mm(joints, scene.truth_joints)))
+                group_errors.append({g: float(v) for g, v in per_group_error_mm(joints, scene.truth_joints, groups).items()})
+                ess.append(float(np.mean(np.asarray(info.ess))))
+                degenerate.append(float(np.mean(np.asarray(info.degenerate))))
+                if run == 0:
+                    estimates = (poses, joints)
+            steady = times[1:] or times
+            per_method[method] = {
+                "error_mm_mean": float(np.mean(errors)),
+                "error_mm_std": float(np.std(errors)),
+                "error_mm_per_run": errors,
+                "per_frame_error_mm": np.mean(curves, axis=0).round(2).tolist(),
+                "per_group_error_mm": {g: float(np.mean([e[g] for e in group_errors])) for g in groups},
+                "frames_per_second": float(scene.num_frames / np.median(steady)),
+                "first_run_s (includes compile)": float(times[0]),
+                "mean_ess": float(np.mean(ess)),
+                "degenerate_fraction": float(np.mean(degenerate)),
+                "likelihood_evaluations_per_frame": config.budget,
+            }
+            results["estimates"].setdefault(name, {})[method] = estimates
+            say(f"{name} {method_label(method):>8}: {np.mean(errors):6.1f} ({np.std(errors):4.1f}) mm over {config.runs} runs, "
+                f"{per_method[method]['frames_per_second']:.1f} frames/s")
+        results["sequences"][name] = per_method
+    if out_dir is not None:
+        write_outputs(results, test, test_names, out_dir, animations=animations)
+    return results

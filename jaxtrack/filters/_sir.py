@@ -1,0 +1,69 @@
+"""Sampling importance resampling (Condensation; 001 eqs. 1-4) with any dynamics: one SMC layer
+per frame. With the pose random walk this is SIR; with MRPF's transition it is MRPF
+(000 Alg. 1); with the latent random walk it is the latent-space Condensation of 003 Alg. 2."""
+
+from __future__ import annotations
+
+import equinox as eqx
+
+from ..dynamics import AbstractDynamics
+from ..likelihood import AbstractLikelihood
+from ._base import AbstractFilter, FilterState, StepInfo, check_particles, duplicate
+from ._estimators import AbstractEstimator, WeightedMean
+from ._resampling import get_resampler
+from ._smc import layer_keys, smc_layer
+
+
+class SIR(AbstractFilter):
+    """Per frame: resample by the previous weights, ``s_t ~ dynamics.propose(s_{t-1})``, weight
+    by ``p(I_t | pose(s_t))`` times the proposal's correction, estimate.
+
+    Attributes:
+        dynamics: the transition (``PoseRandomWalk``, ``ManifoldRegularisedTransition``, ...).
+        likelihood: the observation likelihood.
+        num_particles: N, the likelihood evaluations per frame.
+        resampler: "systematic", "stratified", "multinomial" or "residual".
+        estimator: how the frame's pose is estimated (default: the weighted mean).
+    """
+
+    dynamics: AbstractDynamics
+    likelihood: AbstractLikelihood
+    num_particles: int = eqx.field(static=True)
+    resampler: str = eqx.field(static=True, default="systematic")
+    estimator: AbstractEstimator = WeightedMean()
+
+    def __check_init__(self):
+        check_particles(self.num_particles)
+        get_resampler(self.resampler)
+        check_components(self.dynamics, self.likelihood, self.estimator)
+
+    def init(self, key, initial_pose) -> FilterState:
+        del key  # deterministic: N copies of the initial state
+        return duplicate(self.dynamics.init(initial_pose), self.num_particles)
+
+    def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
+        particles, log_weights, layer = smc_layer(
+            layer_keys(key, 0), state.particles, state.log_weights, move=self.dynamics.propose,
+            log_likelihood=lambda s: self.likelihood(self.dynamics.to_pose(s), observation),
+            resample=get_resampler(self.resampler),
+        )
+        info = StepInfo(
+            estimate=self.estimator(log_weights, particles, self.dynamics),
+            ess=layer.ess,
+            log_evidence=layer.log_evidence,
+            betas=layer.beta[None],
+            survival=(layer.ess / self.num_particles)[None],
+            degenerate=layer.degenerate,
+        )
+        return FilterState(particles, log_weights), info
+
+
+def check_components(dynamics, likelihood, estimator) -> None:
+    """Raise ``TypeError`` unless the parts are a dynamics, a likelihood and an estimator."""
+    for value, kind, name in ((dynamics, AbstractDynamics, "dynamics"), (likelihood, AbstractLikelihood, "likelihood"),
+                              (estimator, AbstractEstimator, "estimator")):
+        if not isinstance(value, kind):
+            hint = " (wrap a plain function with jaxtrack.likelihood.as_likelihood)" if name == "likelihood" else ""
+            raise TypeError(f"{name} must be an {kind.__name__}, got {type(value).__name__}{hint}")
+
+

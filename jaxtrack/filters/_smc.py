@@ -1,0 +1,75 @@
+"""One SMC layer, the step every filter and every annealing layer is built from.
+
+Order (as in blackjax's ``smc/base.py``): resample by the incoming weights, move each particle
+(the dynamics' proposal, or an annealing layer's perturbation), weight by the tempered
+likelihood times the move's importance correction, normalise. Weights stay in logs; an
+all-``-inf``/NaN set is made uniform and flagged (``normalise_log_weights``), so no NaN leaves
+a layer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+
+from .._custom_types import Array, Bool, Float, PRNGKeyArray
+from ._weights import effective_sample_size, log_mean_exp, normalise_log_weights
+
+
+class LayerInfo(eqx.Module):
+    """Per layer: the exponent ``beta`` applied to the log-likelihood, the ESS of the new weights,
+    whether they were degenerate, and ``ln mean_i exp(l_i)`` of the untempered log-likelihoods."""
+
+    beta: Float[Array, ""]
+    ess: Float[Array, ""]
+    degenerate: Bool[Array, ""]
+    log_evidence: Float[Array, ""]
+
+
+def layer_keys(key: PRNGKeyArray, layer) -> tuple[PRNGKeyArray, PRNGKeyArray]:
+    """The (resample, move) keys of layer ``layer`` of a frame: ``key`` split in two, each
+    folded with the layer index, so layers draw independent numbers from one frame key."""
+    resample_key, move_key = jax.random.split(key)
+    return jax.random.fold_in(resample_key, layer), jax.random.fold_in(move_key, layer)
+
+
+def smc_layer(
+    keys: tuple[PRNGKeyArray, PRNGKeyArray],
+    particles: Float[Array, "n s"],
+    log_weights: Float[Array, " n"],
+    *,
+    move: Callable,
+    log_likelihood: Callable,
+    resample: Callable,
+    temper: Callable | None = None,
+) -> tuple[Float[Array, "n s"], Float[Array, " n"], LayerInfo]:
+    """Resample, move, weight, normalise.
+
+    Args:
+        keys: (resample key, move key), e.g. ``layer_keys(frame_key, m)``.
+        particles, log_weights: the incoming particles (N, S) and their log-weights.
+        move: ``(key, particles) -> (moved particles, log correction (N,))``, e.g.
+            ``dynamics.propose``.
+        log_likelihood: ``particles (N, S) -> (N,)`` log-likelihoods of this frame.
+        resample: ``(key, log_weights) -> (N,) ancestor indices``.
+        temper: ``log_likelihoods -> beta``; None for ``beta = 1`` (no tempering).
+
+    Returns:
+        the moved particles, their normalised log-weights
+        ``beta l_i + correction_i - logsumexp(...)``, and the ``LayerInfo``.
+    """
+    resample_key, move_key = keys
+    ancestors = resample(resample_key, log_weights)
+    moved, log_correction = move(move_key, particles[ancestors])
+    log_lik = log_likelihood(moved)
+    if temper is None:
+        beta = jax.numpy.ones((), log_lik.dtype)
+        tempered = log_lik
+    else:
+        beta = temper(log_lik)
+        tempered = beta * log_lik
+    new_log_weights, degenerate = normalise_log_weights(tempered + log_correction)
+    info = LayerInfo(beta=beta, ess=effective_sample_size(new_log_weights), degenerate=degenerate, log_evidence=log_mean_exp(log_lik))
+    return moved, new_log_weights, info

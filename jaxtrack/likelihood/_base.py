@@ -1,0 +1,76 @@
+"""The likelihood interface: a batch of poses and one frame's observation in, one
+log-likelihood per pose out. Sums of likelihoods are likelihoods (multiple cues)."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._custom_types import Array, Float
+
+
+class AbstractLikelihood(eqx.Module):
+    """``ln p(observation | pose)`` for a batch of poses, up to a constant shared by the batch.
+
+    Subclasses implement ``log_likelihood``; calling the module is the same thing. Every
+    filter scores its particles through this interface (after mapping its states to poses).
+    ``a + b`` is the ``SumLikelihood`` of two likelihoods (independent cues).
+    """
+
+    @abc.abstractmethod
+    def log_likelihood(self, poses: Float[Array, "particles dofs"], observation: Any) -> Float[Array, " particles"]:
+        """Log-likelihood of each of N poses given one frame's observation (any pytree, e.g.
+        silhouettes (views, H, W)). Pure: jit- and vmap-safe, and differentiable in ``poses``
+        where the likelihood is smooth. May return ``-inf`` for an impossible pose."""
+
+    def __call__(self, poses: Float[Array, "particles dofs"], observation: Any) -> Float[Array, " particles"]:
+        return self.log_likelihood(poses, observation)
+
+    def __add__(self, other: AbstractLikelihood) -> SumLikelihood:
+        if not isinstance(other, AbstractLikelihood):
+            return NotImplemented
+        return SumLikelihood((self, other))
+
+
+class SumLikelihood(AbstractLikelihood):
+    """``sum_k ln p_k(observation | pose)``: independent cues multiply their likelihoods.
+
+    Every term receives the same observation; a likelihood that needs its own part of a
+    multi-cue observation reads it from a pytree (e.g. a dict of arrays).
+    """
+
+    terms: tuple[AbstractLikelihood, ...]
+
+    def __check_init__(self):
+        if not self.terms or not all(isinstance(t, AbstractLikelihood) for t in self.terms):
+            raise TypeError("SumLikelihood needs one or more AbstractLikelihood terms")
+
+    def log_likelihood(self, poses, observation):
+        total = self.terms[0].log_likelihood(poses, observation)
+        for term in self.terms[1:]:
+            total = total + term.log_likelihood(poses, observation)
+        return total
+
+
+class FunctionLikelihood(AbstractLikelihood):
+    """A plain function ``(poses (N, D), observation) -> (N,)`` as a likelihood (e.g. a
+    Gaussian stand-in in tests). The function is static: closing over arrays you want to
+    change without recompiling is better done in a Module of your own."""
+
+    function: Callable = eqx.field(static=True)
+
+    def log_likelihood(self, poses, observation):
+        return jnp.asarray(self.function(poses, observation))
+
+
+def as_likelihood(likelihood) -> AbstractLikelihood:
+    """An ``AbstractLikelihood`` as it is, a plain callable wrapped in ``FunctionLikelihood``."""
+    if isinstance(likelihood, AbstractLikelihood):
+        return likelihood
+    if callable(likelihood):
+        return FunctionLikelihood(likelihood)
+    raise TypeError(f"a likelihood must be an AbstractLikelihood or a callable, got {type(likelihood).__name__}")

@@ -1,0 +1,113 @@
+"""The manifold interface every pose model implements, and the registry of model classes that
+``save_model`` / ``load_model`` know.
+
+A manifold maps joint angles (pose units) to a low-dimensional latent space and back: ``encode``
+(pose -> latent), ``decode`` (latent -> predictive mean and variance), a pure ``objective`` that
+``fit_model`` maximises over the leaves ``trainable`` marks, and a header/template pair that
+lets a saved file be read back into the right class and shapes.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any
+
+import equinox as eqx
+
+from .._custom_types import Array, Float
+
+
+class AbstractManifold(eqx.Module):
+    """A learned pose manifold (GPLVM family). Attributes every model has:
+
+    Attributes:
+        data: (N, Da) standardised training data.
+        mean, scale: (Da,) the standardisation: pose = mean + scale * data.
+    """
+
+    data: eqx.AbstractVar[Float[Array, "n a"]]
+    mean: eqx.AbstractVar[Float[Array, " a"]]
+    scale: eqx.AbstractVar[Float[Array, " a"]]
+
+    @abc.abstractmethod
+    def training_latent(self) -> Float[Array, "n q"]:
+        """The latent points of the N training poses."""
+
+    @abc.abstractmethod
+    def objective(self) -> Float[Array, ""]:
+        """The pure objective fitting maximises (a log posterior or a bound on it)."""
+
+    @abc.abstractmethod
+    def trainable(self) -> Any:
+        """Filter spec (same structure as the model): True for the leaves fitting changes."""
+
+    @abc.abstractmethod
+    def predictor(self):
+        """The predictive map latent -> pose (a ``GPPredictor``), factorised once."""
+
+    @abc.abstractmethod
+    def back_constraint(self):
+        """The learned map from standardised poses to latent points, or None when the model
+        has none (then ``encode`` optimises 003 eq. 5)."""
+
+    @abc.abstractmethod
+    def header(self) -> dict:
+        """Class-specific fields for a saved file's header (what ``template`` needs)."""
+
+    @classmethod
+    @abc.abstractmethod
+    def template(cls, header: dict, dtype) -> AbstractManifold:
+        """A model of this class with the header's shapes (zeros), for loading a file into."""
+
+    @property
+    def latent_dim(self) -> int:
+        return self.training_latent().shape[1]
+
+    @property
+    def data_dim(self) -> int:
+        return self.data.shape[1]
+
+    def training_poses(self) -> Float[Array, "n a"]:
+        """The training data in pose units."""
+        return self.mean + self.scale * self.data
+
+    def encode(self, poses: Float[Array, "m a"], *, max_steps: int | None = None) -> Float[Array, "m q"]:
+        """Joint angles (pose units) -> latent points: the back-constraint where there is one,
+        otherwise 003 eq. 5 by BFGS (see ``ManifoldPrior.encode``).
+
+        Raises:
+            ValueError: if ``poses`` is not (m, Da).
+        """
+        import jax.numpy as jnp
+
+        poses = jnp.asarray(poses, self.data.dtype)
+        if poses.ndim != 2 or poses.shape[1] != self.data_dim:
+            raise ValueError(f"poses must be (m, {self.data_dim}), got {poses.shape}")
+        return self.prior(0).encode(poses, max_steps=max_steps)
+
+    def decode(self, latent: Float[Array, "m q"]) -> tuple[Float[Array, "m a"], Float[Array, " m"]]:
+        """Predictive mean (pose units) and variance (standardised units, without the noise)
+        at latent points (000 eqs. 23-26). Factorises the covariance on every call: trackers
+        use ``prior()`` once instead."""
+        return self.predictor()(latent)
+
+    def prior(self, global_dims: int):
+        """This manifold precomputed for tracking (``ManifoldPrior``), covering the entries
+        ``global_dims..`` of a pose vector."""
+        from ._prior import ManifoldPrior
+
+        return ManifoldPrior(
+            predictor=self.predictor(), back_constraint=self.back_constraint(), training_latent=self.training_latent(),
+            training_data=self.data, global_dims=global_dims,
+        )
+
+
+MANIFOLD_CLASSES: dict[str, type[AbstractManifold]] = {}
+
+
+def register_manifold(cls: type[AbstractManifold]) -> type[AbstractManifold]:
+    """Class decorator: make a manifold class saveable and loadable under its class name."""
+    if not (isinstance(cls, type) and issubclass(cls, AbstractManifold)):
+        raise TypeError(f"register_manifold takes an AbstractManifold subclass, got {cls!r}")
+    MANIFOLD_CLASSES[cls.__name__] = cls
+    return cls

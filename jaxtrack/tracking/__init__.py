@@ -1,0 +1,29 @@
+"""The tracking pipeline and the tracker registry: sequence -> poses -> manifold -> dynamics ->
+likelihood -> tracker -> estimates, over the pure core (``filters``, ``dynamics``,
+``likelihood``, ``manifold``). Trackers are registered recipes; ``available_trackers()`` lists
+them and ``register_tracker`` adds your own."""
+
+from ._builtin import BUILTIN_RECIPES as BUILTIN_RECIPES
+from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
+from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
+from ._pipeline import TestScene as TestScene
+from ._pipeline import build_tracker as build_tracker
+from ._pipeline import check_model_layout as check_model_layout
+from ._pipeline import check_test_sequence as check_test_sequence
+from ._pipeline import fit_manifold as fit_manifold
+from ._pipeline import fit_tracker as fit_tracker
+from ._pipeline import ground_truth_joints as ground_truth_joints
+from ._pipeline import motion_data as motion_data
+from ._pipeline import prepare_test as prepare_test
+from ._pipeline import sequence_poses as sequence_poses
+from ._pipeline import track as track
+from ._pipeline import track_sequence as track_sequence
+from ._pipeline import tracker_keys as tracker_keys
+from ._registry import Budget as Budget
+from ._registry import MotionData as MotionData
+from ._registry import TrackerRecipe as TrackerRecipe
+from ._registry import available_trackers as available_trackers
+from ._registry import get_tracker as get_tracker
+from ._registry import register_tracker as register_tracker
+from ._registry import tracker_index as tracker_index
+from ._registry import unregister_tracker as unregister_tracker

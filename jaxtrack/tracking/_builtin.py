@@ -1,0 +1,19 @@
+"""The built-in trackers, registered in this order when ``jaxtrack.tracking`` is imported (the
+order fixes each tracker's key stream, ``tracker_index``). Adding a tracker: its recipe module
+in this package, and one line here."""
+
+from . import _apf, _gpapf, _latentpf, _mrpf, _sir
+from ._registry import register_tracker
+
+BUILTIN_RECIPES = (
+    _sir.RECIPE,
+    _apf.RECIPE,
+    _mrpf.RECIPE,
+    _gpapf.RECIPE,
+    _latentpf.RECIPE,
+    _mrpf.PRINTED,
+)
+PAPER_TRACKERS = ("sir", "apf", "mrpf", "gpapf", "latentpf")  # what an experiment runs by default (000 Table 1 + 001 + 003)
+
+for _recipe in BUILTIN_RECIPES:
+    register_tracker(_recipe, replace=True)

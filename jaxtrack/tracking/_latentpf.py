@@ -1,0 +1,18 @@
+"""LatentPF (003 Alg. 2): Condensation over (global entries, latent point), estimate mu(E[omega])."""
+
+from ..dynamics import fit_latent_random_walk
+from ..filters import SIR, StateMean
+from ._registry import TrackerRecipe
+
+
+def fit(key, motion):
+    del key
+    return fit_latent_random_walk(motion.manifold, list(motion.validation), motion.training_starts)
+
+
+def build(dynamics, likelihood, budget):
+    return SIR(dynamics, likelihood, budget.evaluations, estimator=StateMean())
+
+
+RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,
+                       needs_manifold=True)

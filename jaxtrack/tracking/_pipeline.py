@@ -1,0 +1,190 @@
+"""The tracking pipeline, sequence -> poses -> manifold -> dynamics -> likelihood -> tracker ->
+estimates, as a friendly layer over the pure core.
+
+Precision is decided here, once: manifolds and dynamics are fitted in float64, then cast to
+float32 (``TRACKING_DTYPE``) at ``build_tracker``; the likelihood and the filters run in
+float32; estimates come back as float64 NumPy arrays for the metrics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._custom_types import PRNGKeyArray
+from .._tree import cast_floating
+from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
+from ..filters import run_filter
+from ..io import Sequence
+from ..likelihood import check_silhouettes, make_silhouette_likelihood
+from ..manifold import fit_model, make_bc_gplvm
+from ._registry import Budget, MotionData, TrackerRecipe
+
+TRACKING_DTYPE = jnp.float32
+FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
+
+
+def sequence_poses(sequence: Sequence, name: str, *, key: PRNGKeyArray) -> np.ndarray:
+    """The (T, D) pose vectors of a sequence (float64): its ``pose`` key, or inverse kinematics
+    on ``joints3d`` with the sequence's own skeleton when it has none (``key`` seeds the IK's
+    restarts)."""
+    if sequence.joint_names is not None:
+        check_joint_names([str(n) for n in sequence.joint_names], HUMANEVA_JOINTS, f"{name} joint_names")
+    if sequence.pose is not None:
+        return np.asarray(sequence.pose, np.float64)
+    if sequence.joints3d is None:
+        raise ValueError(f"{name}: needs 'pose' or 'joints3d' (ground truth) for the experiment")
+    return np.asarray(inverse_kinematics(sequence.joints3d, key=key).pose, np.float64)
+
+
+def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.ndarray:
+    """The (T, J, 3) ground-truth joints: the file's ``joints3d``, else forward kinematics."""
+    if sequence.joints3d is not None:
+        return np.asarray(sequence.joints3d, np.float64)
+    return np.asarray(forward_kinematics(skeleton, jnp.asarray(poses, skeleton.offsets.dtype)), np.float64)
+
+
+def check_test_sequence(sequence: Sequence, name: str) -> None:
+    """A test sequence needs silhouettes, cameras and ground truth; raise ``ValueError`` if not."""
+    missing = [what for what, ok in (("silhouettes", sequence.silhouettes is not None), ("cameras", sequence.has_cameras)) if not ok]
+    if missing:
+        raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)} (found neither key)" if len(missing) == 2
+                         else f"{name}: a test sequence needs {missing[0]}, which the file lacks")
+    if sequence.joints3d is None and sequence.pose is None:
+        raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
+
+
+def fit_manifold(train_poses: list[np.ndarray], latent_dim: int, steps: int, *, progress: bool = False):
+    """A BC-GPLVM (000 eqs. 21-22) on the joint angles of the training pose sequences, in float64.
+
+    Returns:
+        ``(model, FitInfo, training_starts)``.
+    """
+    angles = np.concatenate([joint_angles(p) for p in train_poses])
+    starts = tuple(int(v) for v in np.cumsum([0] + [len(p) for p in train_poses]))
+    with jax.enable_x64(True):
+        model = make_bc_gplvm(angles, latent_dim)
+        fitted, info = fit_model(model, max_steps=steps, progress=progress)
+    return fitted, info, starts
+
+
+def motion_data(train_poses, validation_poses, model=None, training_starts=None) -> MotionData:
+    """The ``MotionData`` the trackers' dynamics are fitted on (float64), with the manifold
+    ``model`` precomputed for tracking when one is given."""
+    manifold = None
+    if model is not None:
+        with jax.enable_x64(True):
+            manifold = model.prior(validation_poses[0].shape[1] - model.data_dim)
+    return MotionData(
+        training=tuple(np.asarray(p, np.float64) for p in train_poses),
+        validation=tuple(np.asarray(p, np.float64) for p in validation_poses),
+        manifold=manifold,
+        training_starts=training_starts,
+    )
+
+
+def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
+    """The tracker's fitted dynamics (float64)."""
+    if recipe.needs_manifold and motion.manifold is None:
+        raise ValueError(f"{recipe.label} needs a fitted manifold; none was given")
+    with jax.enable_x64(True):
+        return recipe.fit(key, motion)
+
+
+def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget):
+    """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast)."""
+    recipe.check_budget(budget)
+    return recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+
+
+@dataclasses.dataclass(frozen=True)
+class TestScene:
+    """A test sequence ready to track: float32 likelihood and observations, the initial pose,
+    and the float64 ground truth."""
+
+    likelihood: object
+    observations: jax.Array  # (T, C, H, W) float32
+    initial_pose: jax.Array  # (D,) float32
+    truth_poses: np.ndarray  # (T, D)
+    truth_joints: np.ndarray  # (T, J, 3)
+    body: object
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.observations.shape[0])
+
+
+def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
+                 window="auto") -> TestScene:
+    """Validate a test sequence and build its likelihood and observations (the first
+    ``frames`` frames, all when None)."""
+    check_test_sequence(sequence, name)
+    total = sequence.silhouettes.shape[1]
+    frames = total if frames is None else min(frames, total)
+    rig = sequence.rig(dtype=TRACKING_DTYPE)
+    body = sequence.body(dtype=TRACKING_DTYPE)
+    observed = check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames]
+    truth_poses = sequence_poses(sequence, name, key=key)[:frames]
+    truth = ground_truth_joints(sequence, truth_poses, body.skeleton)[:frames]
+    likelihood = make_silhouette_likelihood(body, rig, scale=likelihood_scale, window=window, silhouettes=observed)
+    return TestScene(
+        likelihood=likelihood, observations=jnp.asarray(np.moveaxis(observed, 1, 0)),
+        initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE), truth_poses=truth_poses, truth_joints=truth, body=body,
+    )
+
+
+def track(tracker, key: PRNGKeyArray, scene: TestScene):
+    """Run a tracker on a prepared scene from its first frame's ground truth.
+
+    Returns:
+        ``(poses (T, D), joints (T, J, 3), infos)``: float64 estimates and the per-frame
+        ``StepInfo``.
+    """
+    _, info = run_filter(tracker, key, scene.initial_pose, scene.observations)
+    poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
+    joints = np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(poses, TRACKING_DTYPE)), np.float64)
+    return poses, joints, info
+
+
+def tracker_keys(seed: int, index: int) -> tuple[PRNGKeyArray, PRNGKeyArray]:
+    """``(fit key, run root)`` of the tracker at registry position ``index``: run r uses
+    ``fold_in(run_root, r)``."""
+    root = jax.random.fold_in(jax.random.key(seed), index)
+    return jax.random.fold_in(root, FIT_KEY_TAG), root
+
+
+def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> None:
+    """Refuse a saved manifold fitted on another pose layout than ``sequence``'s joint angles."""
+    from ..body import humaneva_skeleton
+
+    layout = header.get("extra", {}).get("pose_layout")
+    source = sequence.pose_layout if sequence.pose_layout is not None else humaneva_skeleton().pose_layout
+    expected = [str(n) for n in source[GLOBAL_DOFS:]]
+    if layout is not None and list(layout) != expected:
+        raise ValueError(f"the model was fitted on another skeleton: its pose layout {layout[:4]}... "
+                         f"({len(layout)} entries) differs from {name}'s {expected[:4]}... ({len(expected)} entries)")
+    if model.data_dim != len(expected):
+        raise ValueError(f"the model has {model.data_dim} pose entries, {name} has {len(expected)} joint angles")
+
+
+def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
+                   layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test"):
+    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
+
+    Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
+    """
+    from ._registry import get_tracker, tracker_index
+
+    recipe = get_tracker(method)
+    budget_ = Budget(budget, layers)
+    recipe.check_budget(budget_)
+    check_model_layout(model, header, sequence, name)
+    key = jax.random.key(seed)
+    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale)
+    motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
+    fit_key, run_root = tracker_keys(seed, tracker_index(method))
+    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_)
+    return track(tracker, jax.random.fold_in(run_root, 0), scene)

@@ -1,0 +1,142 @@
+"""The tracker registry: what a tracker is to the pipeline (a recipe that fits its dynamics on
+motion data once and builds its filter for a test sequence), and the name -> recipe table that
+the experiment, the command line, the demo and the benchmarks read.
+
+Register a tracker of your own with ``register_tracker(TrackerRecipe(...))``; it then runs
+through ``jaxtrack.experiment.run_experiment`` and, loaded with ``--plugin``, through
+``jaxtrack experiment`` and ``jaxtrack track``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..manifold import ManifoldPrior
+
+
+@dataclasses.dataclass(frozen=True)
+class Budget:
+    """Likelihood evaluations per frame, and the annealing layers they may be split into."""
+
+    evaluations: int
+    layers: int = 1
+
+    def __post_init__(self):
+        for name in ("evaluations", "layers"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"budget {name} must be a positive integer, got {value!r}")
+
+    @property
+    def per_layer(self) -> int:
+        """Particles per layer when the budget is split into ``layers`` equal layers."""
+        return self.evaluations // self.layers
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionData:
+    """The motion a tracker's dynamics are fitted on, in float64.
+
+    Attributes:
+        training: (T_i, D) pose sequences the manifold was fitted on.
+        validation: (T_i, D) pose sequences held out for the dynamics (000 sec. 5.2).
+        manifold: the fitted manifold precomputed for tracking, or None.
+        training_starts: first frame of each training sequence in the manifold's data, ending
+            with the total.
+    """
+
+    training: tuple[np.ndarray, ...]
+    validation: tuple[np.ndarray, ...]
+    manifold: ManifoldPrior | None = None
+    training_starts: tuple[int, ...] | None = None
+
+    @property
+    def pose_dim(self) -> int:
+        return int(self.validation[0].shape[1])
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackerRecipe:
+    """How to make one tracker.
+
+    Attributes:
+        name: the registry name (``--methods NAME``).
+        label: the column header in tables and plots.
+        description: one line for ``--help`` and the README.
+        fit: ``(key, MotionData) -> fitted`` (a dynamics module, or a pytree of them), run once
+            per experiment in float64.
+        build: ``(fitted, likelihood, Budget) -> AbstractFilter``, run per test sequence on the
+            fitted parameters cast to the tracking precision.
+        needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
+        annealed: whether the budget is split into ``Budget.layers`` equal layers.
+        min_layers: the fewest layers the tracker works with.
+    """
+
+    name: str
+    label: str
+    description: str
+    fit: Callable[[Any, MotionData], Any]
+    build: Callable[[Any, Any, Budget], Any]
+    needs_manifold: bool = False
+    annealed: bool = False
+    min_layers: int = 1
+
+    def __post_init__(self):
+        if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
+            raise ValueError(f"a tracker name must be a non-empty word, got {self.name!r}")
+        if not (callable(self.fit) and callable(self.build)):
+            raise TypeError(f"tracker {self.name!r}: fit and build must be callables")
+
+    def check_budget(self, budget: Budget) -> None:
+        """Raise ``ValueError`` if this tracker cannot spend ``budget``."""
+        if not self.annealed:
+            return
+        if budget.layers < self.min_layers:
+            raise ValueError(f"{self.label} needs at least {self.min_layers} layers, got {budget.layers}")
+        if budget.evaluations % budget.layers:
+            raise ValueError(
+                f"a budget of {budget.evaluations} likelihood evaluations cannot be split into {budget.layers} equal "
+                f"annealing layers for {self.label}; use a multiple of {budget.layers}"
+            )
+
+
+_REGISTRY: dict[str, TrackerRecipe] = {}
+
+
+def register_tracker(recipe: TrackerRecipe, *, replace: bool = False) -> TrackerRecipe:
+    """Add a tracker to the registry (``replace=True`` to redefine a name); returns it."""
+    if not isinstance(recipe, TrackerRecipe):
+        raise TypeError(f"register_tracker takes a TrackerRecipe, got {type(recipe).__name__}")
+    if recipe.name in _REGISTRY and not replace:
+        raise ValueError(f"a tracker named {recipe.name!r} is already registered (pass replace=True to redefine it)")
+    _REGISTRY[recipe.name] = recipe
+    return recipe
+
+
+def unregister_tracker(name: str) -> None:
+    """Remove a tracker from the registry."""
+    get_tracker(name)
+    del _REGISTRY[name]
+
+
+def available_trackers() -> tuple[str, ...]:
+    """The registered tracker names, in registration order (the built-in ones first)."""
+    return tuple(_REGISTRY)
+
+
+def get_tracker(name: str) -> TrackerRecipe:
+    """The recipe registered as ``name``; raises ``ValueError`` listing the names otherwise."""
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown tracker {name!r}; registered trackers: {', '.join(_REGISTRY)}")
+    return _REGISTRY[name]
+
+
+def tracker_index(name: str) -> int:
+    """The position of ``name`` in the registry: the stream its runs' keys are folded from, so a
+    tracker's results do not depend on which other trackers an experiment runs."""
+    get_tracker(name)
+    return list(_REGISTRY).index(name)
