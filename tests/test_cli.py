@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from helpers import small_scene
-from jaxtrack._demo import run_likelihood_demo
+from jaxtrack.demo import run_likelihood_demo
 from jaxtrack.cli import main
 from jaxtrack.io import load_sequence, save_sequence
 
@@ -45,7 +45,7 @@ def test_demo_end_to_end(tmp_path):
 
 @pytest.mark.slow
 def test_experiment_demo(tmp_path):
-    from jaxtrack._demo import run_demo
+    from jaxtrack.demo import run_demo
 
     results, paths = run_demo(str(tmp_path / "demo"), frames=8, budget=100, runs=1, verbose=False)
     assert set(results["sequences"]) == {"S1 walk", "S2 jog"}

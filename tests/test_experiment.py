@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from helpers import small_scene
-from jaxtrack._experiment import ExperimentConfig, check_test_sequence, run_experiment, sequence_poses, track_sequence
 from jaxtrack.data import generate_motion, motion_sequence
+from jaxtrack.experiment import ExperimentConfig, run_experiment
+from jaxtrack.tracking import check_test_sequence, sequence_poses, track_sequence
 
 
 @pytest.fixture(scope="module")
@@ -24,17 +25,19 @@ def test_bad_experiment_inputs(sequences):
     train, validation, test = sequences
     with pytest.raises(ValueError, match="cannot be split into 3 equal annealing layers for APF"):
         ExperimentConfig(budget=500, layers=3, methods=("sir", "apf"))
-    with pytest.raises(ValueError, match=r"unknown methods \['pf'\]"):
+    with pytest.raises(ValueError, match=r"unknown tracker 'pf'; registered trackers: sir, apf, mrpf"):
         ExperimentConfig(methods=("pf",))
-    with pytest.raises(ValueError, match="mrpf_proposal must be one of"):
-        ExperimentConfig(mrpf_proposal="optimal")
+    with pytest.raises(ValueError, match="lists a tracker twice"):
+        ExperimentConfig(methods=("sir", "sir"))
+    with pytest.raises(ValueError, match="GPAPF needs at least 2 layers"):
+        ExperimentConfig(methods=("gpapf",), budget=100, layers=1)
     with pytest.raises(ValueError, match="needs silhouettes and cameras"):
         check_test_sequence(train[0], "walk.npz")
     with pytest.raises(ValueError, match="needs silhouettes, which the file lacks"):
         check_test_sequence(test[0].replace(silhouettes=None), "walk.npz")
     renamed = test[0].replace(joint_names=np.array(["root"] + [str(n) for n in test[0].joint_names[1:]]))
     with pytest.raises(ValueError, match="joint_names"):
-        sequence_poses(renamed, "walk.npz")
+        sequence_poses(renamed, "walk.npz", key=jax.random.key(0))
     with pytest.raises(ValueError, match="needs silhouettes and cameras"):
         run_experiment(train, validation, train[:1], ExperimentConfig(runs=1), progress=False)
 

@@ -14,13 +14,13 @@ from jaxtrack.filters import (
     make_apf,
     make_gpapf,
     make_latent_pf,
-    make_manifold_prior,
     make_mrpf,
     make_sir,
     normalise_log_weights,
     run_filter,
+    survival_rate,
 )
-from jaxtrack.filters._annealing import survival_rate
+from jaxtrack.manifold import make_manifold_prior
 
 
 # ----------------------------------------------------------------------------- resampling
@@ -154,7 +154,7 @@ def test_all_minus_infinity_weights_do_not_leak_nans(getkey):
 
 
 def test_bad_filter_arguments():
-    with pytest.raises(ValueError, match="scales must be a scalar or have shape"):
+    with pytest.raises(ValueError, match=r"scales must have shape \(D,\)"):
         make_sir(gaussian_likelihood, jnp.ones((2, 2)), 10)
     with pytest.raises(ValueError, match="num_particles must be a positive integer"):
         make_sir(gaussian_likelihood, Q, 0)
@@ -237,7 +237,7 @@ def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
     np.testing.assert_allclose(float(info.ess[0]), n, rtol=1e-9)
     # the reference, written out from the equations
     z = np.asarray(prior.encode(start[None, 6:]))[0] + s_xz * np.asarray(jax.random.normal(getkey(), (n, 2), jnp.float64))
-    mu = np.asarray(prior.decode(jnp.asarray(z)))
+    mu = np.asarray(prior.decode_mean(jnp.asarray(z)))
     var_xx, var_zx = 0.05**2, 0.03**2
     m = (var_zx * np.asarray(start[6:]) + var_xx * mu) / (var_xx + var_zx)
     reference = m + np.sqrt(var_xx * var_zx / (var_xx + var_zx)) * np.asarray(jax.random.normal(getkey(), m.shape, jnp.float64))
@@ -256,7 +256,7 @@ def test_latent_filters_follow_the_manifold(walk_prior, getkey):
     """GPAPF and LatentPF estimate poses on the manifold close to the observed target poses."""
     prior, poses = walk_prior
     observations = jnp.asarray(poses[40:50])
-    recon_error = np.abs(np.asarray(prior.decode(prior.encode(observations[:, 6:]))) - np.asarray(observations[:, 6:])).mean()
+    recon_error = np.abs(np.asarray(prior.decode_mean(prior.encode(observations[:, 6:]))) - np.asarray(observations[:, 6:])).mean()
     for tracker in (
         make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 60, 3, dtype=jnp.float64),
         make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 60, 3, s_final=np.full(32, 0.01), dtype=jnp.float64),
@@ -273,26 +273,39 @@ def test_latent_filters_follow_the_manifold(walk_prior, getkey):
         make_mrpf(pose_likelihood, plain, 0.02, 0.1, 0.1, 10)
 
 
-def test_noise_scales_from_validation(walk_prior):
-    from jaxtrack.filters import fit_noise_scales
+def test_dynamics_fitted_on_validation(walk_prior, getkey):
+    """Each dynamics fits its own parameters: the RMS step for the pose walk, the global RMS step
+    and the training latent RMS step for the latent walk, and MRPF's joint fit."""
+    from jaxtrack.dynamics import fit_latent_random_walk, fit_mrpf_transition, fit_pose_random_walk
 
     prior, poses = walk_prior
-    scales = fit_noise_scales(prior, poses[40:])
+    walk = fit_pose_random_walk(poses[40:])
     steps = np.diff(poses[40:], axis=0)
-    np.testing.assert_allclose(scales.s_xx, np.maximum(np.sqrt((steps**2).mean(0)), 1e-3))
-    assert scales.s_xz.shape == (2,) and scales.s_zx.shape == (26,) and scales.nu.shape == (2,) and scales.s_global.shape == (6,)
-    assert np.all(scales.s_zx >= 1e-3)
+    np.testing.assert_allclose(walk.scales, np.maximum(np.sqrt((steps**2).mean(0)), 1e-3))
+    latent = fit_latent_random_walk(prior, poses[40:])
+    np.testing.assert_allclose(latent.s_global, walk.scales[:6])
+    train_steps = np.diff(np.asarray(prior.training_latent), axis=0)
+    np.testing.assert_allclose(latent.s_latent, np.maximum(np.sqrt((train_steps**2).mean(0)), 1e-3))
+    mrpf = fit_mrpf_transition(prior, poses[40:], key=getkey())
+    assert mrpf.s_xz.shape == (2,) and mrpf.s_zx.shape == (26,) and mrpf.proposal == "product"
+    np.testing.assert_array_equal(mrpf.s_xx[:6], walk.scales[:6])  # global entries: eq. 29 only
+    assert np.all(np.asarray(mrpf.s_zx) >= 1e-3) and np.all(np.isfinite(np.asarray(mrpf.s_xx)))
+    assert np.all(np.asarray(mrpf.s_xx[6:]) <= 10 * np.asarray(walk.scales[6:]) + 1e-12)
+    printed = fit_mrpf_transition(prior, poses[40:], key=getkey(), proposal="prior")
+    np.testing.assert_allclose(printed.s_xx, walk.scales)  # Alg. 1 as printed keeps the separate fit
     with pytest.raises(ValueError, match=r"validation poses must be \(T >= 2, 32\)"):
-        fit_noise_scales(prior, poses[:1])
-    np.testing.assert_array_equal(scales.mrpf_s_xx[:6], scales.s_xx[:6])
-    assert np.all(scales.mrpf_s_xx >= 1e-3) and np.all(np.isfinite(scales.mrpf_s_xx))
+        fit_pose_random_walk([poses[:1]])
+    with pytest.raises(ValueError, match=r"validation poses must be \(T >= 2, 32\)"):
+        fit_latent_random_walk(prior, poses[:1])
+    with pytest.raises(ValueError, match="proposal must be one of"):
+        fit_mrpf_transition(prior, poses[40:], key=getkey(), proposal="optimal")
 
 
 def test_transition_scales_recover_the_generating_ones(getkey):
     """Pose pairs drawn from 000 eq. 28 (normalised) with known s_xx, s_zx: the maximum-likelihood
     fit recovers them, the objective's autodiff gradient vanishes there, and moving any log-scale
     by +-0.05 lowers it."""
-    from jaxtrack.filters._noise import fit_transition_scales, transition_log_likelihood
+    from jaxtrack.dynamics import fit_transition_scales, transition_log_likelihood
 
     t, a = 4000, 3
     s_xx, s_zx = np.array([0.05, 0.02, 0.08]), np.array([0.02, 0.04, 0.01])

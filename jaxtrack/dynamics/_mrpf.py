@@ -29,7 +29,7 @@ import numpy as np
 import optimistix as optx
 from jax.scipy.special import logsumexp
 
-from .._custom_types import Array, Float, PRNGKeyArray
+from .._custom_types import Array, ArrayLike, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
 from ._base import AbstractDynamics, check_scale_vector, gaussian_step, motion_sequences, rms_step
 
@@ -153,8 +153,8 @@ def fit_mrpf_transition(
 
 
 def transition_log_likelihood(
-    previous: Float[Array, "t a"], current: Float[Array, "t a"], manifold_means: Float[Array, "k t a"],
-    s_xx: Float[Array, " a"], s_zx: Float[Array, " a"],
+    previous: Float[ArrayLike, "t a"], current: Float[ArrayLike, "t a"], manifold_means: Float[ArrayLike, "k t a"],
+    s_xx: Float[ArrayLike, " a"], s_zx: Float[ArrayLike, " a"],
 ) -> Float[Array, ""]:
     """Mean log-density of MRPF's transition (000 eq. 28 with the latent draws of eq. 27) at
     observed joint-angle pairs, by Monte Carlo over K latent draws ``z_t^k ~ p(z_t | x_{t-1})``

@@ -38,7 +38,9 @@ class PoseRandomWalk(AbstractDynamics):
 
 def make_pose_random_walk(scales, pose_dim: int | None = None, *, dtype=jnp.float32) -> PoseRandomWalk:
     """A ``PoseRandomWalk`` from a (D,) vector of scales, or a scalar and ``pose_dim``."""
-    size = int(np.size(scales)) if pose_dim is None else pose_dim
+    if pose_dim is None and np.ndim(scales) != 1:
+        raise ValueError(f"scales must have shape (D,) (or pass pose_dim with a scalar), got shape {np.shape(scales)}")
+    size = np.shape(scales)[0] if pose_dim is None else pose_dim
     return PoseRandomWalk(jnp.asarray(as_scale_vector("scales", scales, size), dtype))
 
 

@@ -369,7 +369,7 @@ def make_bc_gplvm(
         back = KernelBackConstraint(weights=weights, bias=jnp.zeros(latent_dim, dtype), inputs=Yj, gamma_x=jnp.asarray(gamma_x, dtype))
     else:
         if key is None:
-            raise ValueError("the MLP back-constraint needs an explicit PRNG key (key=jax.random.key(...))")
+            raise ValueError("the MLP back-constraint needs an explicit PRNG key: pass key=... for its initial weights")
         projection = jnp.linalg.lstsq(Yj, Z0)[0]
         mlp = eqx.nn.MLP(Yj.shape[1], latent_dim, hidden, depth, activation=jnp.tanh, key=key, dtype=dtype)
         mlp = eqx.tree_at(lambda m: (m.layers[-1].weight, m.layers[-1].bias), mlp, (jnp.zeros_like(mlp.layers[-1].weight), jnp.zeros_like(mlp.layers[-1].bias)))

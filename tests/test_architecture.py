@@ -1,0 +1,89 @@
+"""Rules that keep the code walkable, checked on the source: no module imports a private module
+of another package, no test, benchmark or notebook imports a private module, and no function
+invents a PRNG key for its caller."""
+
+import ast
+import json
+import pathlib
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "jaxtrack"
+SHARED_PRIVATE = {"_custom_types", "_tree", "_validation"}  # top-level helpers every package may use
+
+
+def _package_of(path: pathlib.Path) -> tuple[str, ...]:
+    return path.relative_to(ROOT).with_suffix("").parts[:-1]
+
+
+def _imported_modules(path: pathlib.Path):
+    tree = ast.parse(path.read_text(), str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = list(_package_of(path))[: len(_package_of(path)) - node.level + 1]
+                parts = base + (node.module.split(".") if node.module else [])
+            else:
+                parts = (node.module or "").split(".")
+            yield node.lineno, tuple(parts), [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, tuple(alias.name.split(".")), []
+
+
+def test_no_package_imports_a_private_module_of_another():
+    offences = []
+    for path in PACKAGE.rglob("*.py"):
+        own = _package_of(path)
+        for line, parts, names in _imported_modules(path):
+            if not parts or parts[0] != "jaxtrack":
+                continue
+            for i, part in enumerate(parts[1:], start=1):
+                private = part.startswith("_") and part not in SHARED_PRIVATE
+                if private and tuple(parts[:i]) != own:
+                    offences.append(f"{path.relative_to(ROOT)}:{line} imports {'.'.join(parts)}")
+    assert not offences, "\n".join(offences)
+
+
+def _outside_sources():
+    for folder in ("tests", "benchmarks"):
+        for path in (ROOT / folder).rglob("*.py"):
+            yield path, path.read_text()
+    for path in (ROOT / "notebooks").glob("*.ipynb"):
+        cells = json.loads(path.read_text())["cells"]
+        yield path, "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+
+
+def test_tests_benchmarks_and_notebooks_use_the_public_api():
+    offences = []
+    for path, text in _outside_sources():
+        for node in ast.walk(ast.parse(text)):
+            module = node.module if isinstance(node, ast.ImportFrom) else None
+            names = [a.name for a in node.names] if isinstance(node, (ast.Import, ast.ImportFrom)) else []
+            for dotted in ([module] if module else []) + ([n for n in names] if isinstance(node, ast.Import) else []):
+                parts = dotted.split(".")
+                if parts[0] == "jaxtrack" and any(p.startswith("_") for p in parts[1:]):
+                    offences.append(f"{path.relative_to(ROOT)}:{node.lineno} imports {dotted}")
+    assert not offences, "\n".join(offences)
+
+
+def test_no_function_defaults_a_prng_key():
+    """A parameter named ``key`` (or ``*_key``) may default to None only where None means "no
+    randomness" and the function never makes a key of its own."""
+    offences = []
+    for path in PACKAGE.rglob("*.py"):
+        tree = ast.parse(path.read_text(), str(path))
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            args = node.args
+            positional = args.posonlyargs + args.args
+            defaults = dict(zip([a.arg for a in positional[len(positional) - len(args.defaults):]], args.defaults))
+            defaults.update({a.arg: d for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None})
+            for name, default in defaults.items():
+                if name != "key" and not name.endswith("_key"):
+                    continue
+                body = ast.unparse(node)
+                is_none = isinstance(default, ast.Constant) and default.value is None
+                if not is_none or "random.key(" in body or "PRNGKey(" in body:
+                    offences.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}({name}={ast.unparse(default)})")
+    assert not offences, "\n".join(offences)

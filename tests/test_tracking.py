@@ -1,0 +1,172 @@
+"""The tracker registry as an extension point, the pipeline's precision boundary and key
+streams, and the run of a tracker defined here through the experiment API and the CLI."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from helpers import small_scene
+from jaxtrack.data import generate_motion, motion_sequence
+from jaxtrack.dynamics import AbstractDynamics, fit_pose_random_walk, gaussian_step
+from jaxtrack.experiment import ExperimentConfig, results_table, run_experiment
+from jaxtrack.filters import SIR, BestParticle
+from jaxtrack.tracking import (
+    Budget,
+    MotionData,
+    TrackerRecipe,
+    available_trackers,
+    build_tracker,
+    get_tracker,
+    register_tracker,
+    tracker_index,
+    unregister_tracker,
+)
+
+
+class DampedWalk(AbstractDynamics):
+    """A dynamics written outside the package: a random walk whose joint angles relax towards a
+    rest pose, ``x_t = rest + rho (x_{t-1} - rest) + N(0, s^2)``."""
+
+    rest: jax.Array
+    rho: jax.Array
+    scales: jax.Array
+
+    def init(self, pose):
+        return pose.astype(self.scales.dtype)
+
+    def to_pose(self, states):
+        return states
+
+    def propose(self, key, previous):
+        mean = self.rest + self.rho * (previous - self.rest)
+        return gaussian_step(key, mean, self.scales), jnp.zeros(previous.shape[0], previous.dtype)
+
+    def perturb(self, key, states, factor):
+        return gaussian_step(key, states, self.scales * factor)
+
+
+def fit_damped(key, motion: MotionData):
+    del key
+    walk = fit_pose_random_walk(list(motion.validation))
+    rest = np.concatenate(motion.training).mean(axis=0)
+    return DampedWalk(rest=jnp.asarray(rest), rho=jnp.asarray(0.95), scales=walk.scales)
+
+
+def build_damped(dynamics, likelihood, budget):
+    return SIR(dynamics, likelihood, budget.evaluations, estimator=BestParticle())
+
+
+DAMPED = TrackerRecipe("test-damped", "Damped", "SIR with a damped random walk, best-particle estimate (test)", fit_damped,
+                       build_damped)
+
+
+@pytest.fixture
+def damped_registered():
+    register_tracker(DAMPED, replace=True)
+    yield DAMPED
+    unregister_tracker(DAMPED.name)
+
+
+@pytest.fixture(scope="module")
+def sequences():
+    _, _, scene = small_scene()
+    train = [motion_sequence(generate_motion(g, "S1", num_frames=30, fps=30.0, key=jax.random.key(i))) for i, g in enumerate(("walk", "jog"))]
+    validation = [motion_sequence(generate_motion("walk", "S1", num_frames=20, fps=30.0, key=jax.random.key(7)))]
+    return train, validation, [scene]
+
+
+def test_builtin_trackers_are_registered():
+    assert available_trackers()[:6] == ("sir", "apf", "mrpf", "gpapf", "latentpf", "mrpf-alg1")
+    assert [tracker_index(n) for n in ("sir", "apf", "mrpf", "gpapf", "latentpf")] == [0, 1, 2, 3, 4]
+    assert get_tracker("gpapf").annealed and get_tracker("gpapf").min_layers == 2
+    with pytest.raises(ValueError, match="already registered"):
+        register_tracker(get_tracker("sir"))
+    with pytest.raises(ValueError, match="unknown tracker 'nope'; registered trackers: sir, apf"):
+        get_tracker("nope")
+    with pytest.raises(TypeError, match="TrackerRecipe"):
+        register_tracker("sir")
+    with pytest.raises(ValueError, match="non-empty word"):
+        TrackerRecipe("two words", "x", "x", fit_damped, build_damped)
+    with pytest.raises(ValueError, match="positive integer"):
+        Budget(0)
+
+
+def test_a_tracker_defined_here_runs_through_the_experiment_api(damped_registered, sequences, tmp_path):
+    train, validation, test = sequences
+    assert "test-damped" in available_trackers()
+    config = ExperimentConfig(methods=("sir", "test-damped"), budget=60, runs=2, frames=5)
+    assert not config.needs_manifold  # no manifold is fitted for these two
+    results = run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]},
+                             progress=False, animations=False)
+    damped = results["sequences"]["walk.npz"]["test-damped"]
+    assert np.isfinite(damped["error_mm_mean"]) and damped["error_mm_mean"] < 300
+    assert len(damped["error_mm_per_run"]) == 2 and damped["error_mm_per_run"][0] != damped["error_mm_per_run"][1]
+    assert len(damped["per_frame_error_mm"]) == 5 and damped["degenerate_fraction"] == 0.0
+    assert results["dynamics"]["test-damped"]["class"] == "DampedWalk"
+    assert results["dynamics"]["test-damped"]["rho"] == pytest.approx(0.95)
+    assert results_table(results).startswith("| Sequence | SIR | Damped |")
+    # the same tracker alone gives the same numbers: its keys come from its registry position
+    alone = run_experiment(train, validation, test, ExperimentConfig(methods=("test-damped",), budget=60, runs=2, frames=5),
+                           progress=False)
+    assert alone["sequences"]["test0"]["test-damped"]["error_mm_per_run"] == damped["error_mm_per_run"]
+    saved = json.loads((tmp_path / "results.json").read_text())
+    assert saved["config"]["methods"] == ["sir", "test-damped"]
+
+
+PLUGIN = '''
+import jax.numpy as jnp
+from jaxtrack.dynamics import fit_pose_random_walk, PoseRandomWalk
+from jaxtrack.filters import SIR
+from jaxtrack.tracking import TrackerRecipe, register_tracker
+
+
+def fit(key, motion):
+    return PoseRandomWalk(0.5 * jnp.asarray(fit_pose_random_walk(list(motion.validation)).scales))
+
+
+register_tracker(TrackerRecipe("plugin-sir", "PluginSIR", "SIR with half the fitted steps", fit,
+                               lambda dynamics, likelihood, budget: SIR(dynamics, likelihood, budget.evaluations)), replace=True)
+'''
+
+
+def test_a_plugin_tracker_runs_through_the_command_line(sequences, tmp_path, capsys):
+    from jaxtrack.cli import main
+    from jaxtrack.io import save_sequence
+
+    train, validation, test = sequences
+    paths = {}
+    for name, seq in (("train", train[0]), ("validation", validation[0]), ("test", test[0])):
+        paths[name] = str(tmp_path / f"{name}.npz")
+        save_sequence(paths[name], seq)
+    plugin = tmp_path / "my_trackers.py"
+    plugin.write_text(PLUGIN)
+    try:
+        code = main(["experiment", "--plugin", str(plugin), "--train", paths["train"], "--validation", paths["validation"],
+                     "--test", paths["test"], "--methods", "plugin-sir", "--budget", "40", "--runs", "1", "--frames", "3",
+                     "--no-animation", "--out", str(tmp_path / "out")])
+        assert code == 0, capsys.readouterr().err
+        assert "| test.npz |" in (tmp_path / "out" / "table.md").read_text()
+        assert "PluginSIR" in capsys.readouterr().out
+    finally:
+        unregister_tracker("plugin-sir")
+    assert main(["experiment", "--plugin", str(tmp_path / "missing.py"), "--train", "x"]) == 2
+    assert "cannot load plugin" in capsys.readouterr().err
+
+
+def test_build_casts_once_to_float32_and_clips(sequences):
+    """Dynamics fitted in float64 reach the filter in float32; a scale beyond float32's range
+    is clipped to its largest value instead of overflowing to inf."""
+    from jaxtrack.dynamics import PoseRandomWalk
+    from jaxtrack.likelihood import as_likelihood
+
+    fitted = PoseRandomWalk(jnp.asarray(np.array([1e-3, 2e47]), jnp.float64))
+    flat = as_likelihood(lambda poses, obs: jnp.zeros(poses.shape[0], poses.dtype))
+    tracker = build_tracker(get_tracker("sir"), fitted, flat, Budget(10))
+    assert tracker.dynamics.scales.dtype == jnp.float32
+    assert np.isfinite(np.asarray(tracker.dynamics.scales)).all()
+    assert float(tracker.dynamics.scales[1]) == float(np.finfo(np.float32).max)
+    with pytest.raises(ValueError, match="cannot be split into 3 equal annealing layers for APF"):
+        build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3))
