@@ -36,7 +36,6 @@ def main():
     import equinox as eqx
     import jax
     import jax.numpy as jnp
-    import numpy as np
 
     from jaxtrack.camera import default_rig
     from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
@@ -57,7 +56,7 @@ def main():
     score = eqx.filter_jit(lambda lik, poses, obs: lik.statistics(poses, obs))
 
     modes = {"dense": dense, "windowed": fast}
-    compile_s, times, overflow = {}, {m: [] for m in modes}, {m: 0 for m in modes}
+    compile_s, times, overflow = {}, {m: [] for m in modes}, dict.fromkeys(modes, 0)
     for name, lik in modes.items():
         start = time.perf_counter()
         jax.block_until_ready(score(lik, particles[0], observed[:, 0]))
@@ -117,8 +116,10 @@ def main():
             jax.block_until_ready(scanned(lik, particles, frames_first))
             totals.append(time.perf_counter() - start)
         per_frame = statistics.median(totals) / args.frames
-        print(json.dumps({"mode": f"{name} in lax.scan", "window": lik.window, "frames": args.frames, "compile_s": round(first - per_frame * args.frames, 3),
-                          "median_ms_per_frame": round(1000 * per_frame, 2), "particle_views_per_s": round(args.particles * rig.num_views / per_frame)}))
+        print(json.dumps({"mode": f"{name} in lax.scan", "window": lik.window, "frames": args.frames,
+                          "compile_s": round(first - per_frame * args.frames, 3),
+                          "median_ms_per_frame": round(1000 * per_frame, 2),
+                          "particle_views_per_s": round(args.particles * rig.num_views / per_frame)}))
 
 
 if __name__ == "__main__":

@@ -41,8 +41,8 @@ def main():
         motion_data,
         prepare_test,
         sequence_poses,
-        tracker_keys,
         tracker_index,
+        tracker_keys,
     )
 
     methods = args.methods or list(PAPER_TRACKERS)

@@ -194,7 +194,8 @@ def load_plugins(argv) -> None:
     import importlib.util
 
     argv = list(argv)
-    plugins = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--plugin"] + [a.split("=", 1)[1] for a in argv if a.startswith("--plugin=")]
+    plugins = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--plugin"]
+    plugins += [a.split("=", 1)[1] for a in argv if a.startswith("--plugin=")]
     for plugin in plugins:
         if plugin.endswith(".py"):
             if not os.path.isfile(plugin):

@@ -37,3 +37,16 @@ def small_scene(num_frames: int = 8, width: int = 40, height: int = 30, noisy: b
     noise = SilhouetteNoise() if noisy else SilhouetteNoise(0, 0, 0, (0, 0), 0, (0, 0), 0, 0)
     scene = build_scene(jax.random.fold_in(key, 1), motion, rig, noise)
     return motion, rig, scene
+
+
+@functools.lru_cache(maxsize=1)
+def small_experiment_sequences():
+    """Training (a walk and a jog, 30 frames), validation (a walk, 20 frames) and test (the
+    ``small_scene`` walk) sequences of subject S1 for quick experiment runs."""
+    from jaxtrack.data import motion_sequence
+
+    def motion(gait, frames, seed):
+        return motion_sequence(generate_motion(gait, "S1", num_frames=frames, fps=30.0, key=jax.random.key(seed)))
+
+    train = [motion("walk", 30, 0), motion("jog", 30, 1)]
+    return train, [motion("walk", 20, 7)], [small_scene()[2]]

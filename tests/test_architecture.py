@@ -34,7 +34,7 @@ def test_no_package_imports_a_private_module_of_another():
     offences = []
     for path in PACKAGE.rglob("*.py"):
         own = _package_of(path)
-        for line, parts, names in _imported_modules(path):
+        for line, parts, _ in _imported_modules(path):
             if not parts or parts[0] != "jaxtrack":
                 continue
             for i, part in enumerate(parts[1:], start=1):
@@ -59,7 +59,7 @@ def test_tests_benchmarks_and_notebooks_use_the_public_api():
         for node in ast.walk(ast.parse(text)):
             module = node.module if isinstance(node, ast.ImportFrom) else None
             names = [a.name for a in node.names] if isinstance(node, (ast.Import, ast.ImportFrom)) else []
-            for dotted in ([module] if module else []) + ([n for n in names] if isinstance(node, ast.Import) else []):
+            for dotted in ([module] if module else []) + (list(names) if isinstance(node, ast.Import) else []):
                 parts = dotted.split(".")
                 if parts[0] == "jaxtrack" and any(p.startswith("_") for p in parts[1:]):
                     offences.append(f"{path.relative_to(ROOT)}:{node.lineno} imports {dotted}")
@@ -87,3 +87,12 @@ def test_no_function_defaults_a_prng_key():
                 if not is_none or "random.key(" in body or "PRNGKey(" in body:
                     offences.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}({name}={ast.unparse(default)})")
     assert not offences, "\n".join(offences)
+
+
+def test_notebooks_are_stored_without_outputs():
+    notebooks = sorted((ROOT / "notebooks").glob("*.ipynb"))
+    assert len(notebooks) >= 3
+    for path in notebooks:
+        for cell in json.loads(path.read_text())["cells"]:
+            if cell["cell_type"] == "code":
+                assert not cell["outputs"] and cell["execution_count"] is None, f"{path.name}: outputs are not stripped"

@@ -3,7 +3,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check
 from jaxtrack.body import (
     HUMANEVA_JOINTS,
     forward_kinematics,
@@ -12,6 +11,8 @@ from jaxtrack.body import (
     part_group_indices,
     with_offsets,
 )
+
+from helpers import finite_difference_check
 
 
 @pytest.fixture

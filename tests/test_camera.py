@@ -3,7 +3,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check
 from jaxtrack.camera import (
     check_in_front,
     decompose_projection_matrix,
@@ -13,6 +12,8 @@ from jaxtrack.camera import (
     project_points,
     rig_from_projection_matrices,
 )
+
+from helpers import finite_difference_check
 
 
 def opencv_project(K, R, t, dist, X):
@@ -35,7 +36,7 @@ def rig():
 
 def test_projection_matches_opencv_formula(rig, getkey):
     X = np.asarray(jax.random.uniform(getkey(), (20, 3), minval=-1, maxval=1)) + [0, 0, 1]
-    uv, depth, front = project_points(rig, jnp.asarray(X))
+    uv, _depth, front = project_points(rig, jnp.asarray(X))
     assert uv.shape == (20, 4, 2) and bool(front.all())
     for c in range(4):
         ref = opencv_project(*(np.asarray(a[c]) for a in (rig.K, rig.R, rig.t, rig.dist)), X)

@@ -4,10 +4,11 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from helpers import small_scene
-from jaxtrack.demo import run_likelihood_demo
 from jaxtrack.cli import main
+from jaxtrack.demo import run_likelihood_demo
 from jaxtrack.io import load_sequence, save_sequence
+
+from helpers import small_scene
 
 
 def test_render_writes_png_and_gif(tmp_path, capsys):

@@ -7,18 +7,15 @@ import jax
 import numpy as np
 import pytest
 
-from helpers import small_scene
-from jaxtrack.data import generate_motion, motion_sequence
 from jaxtrack.experiment import ExperimentConfig, run_experiment
 from jaxtrack.tracking import check_test_sequence, sequence_poses, track_sequence
+
+from helpers import small_experiment_sequences
 
 
 @pytest.fixture(scope="module")
 def sequences():
-    motion, rig, scene = small_scene()
-    train = [motion_sequence(generate_motion(g, "S1", num_frames=30, fps=30.0, key=jax.random.key(i))) for i, g in enumerate(("walk", "jog"))]
-    validation = [motion_sequence(generate_motion("walk", "S1", num_frames=20, fps=30.0, key=jax.random.key(7)))]
-    return train, validation, [scene]
+    return small_experiment_sequences()
 
 
 def test_bad_experiment_inputs(sequences):

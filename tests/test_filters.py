@@ -1,7 +1,6 @@
 """Particle filter core: resamplers, weights, and each tracker against a reference with a known
 answer (Kalman filter, SIR)."""
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,7 +20,6 @@ from jaxtrack.filters import (
     survival_rate,
 )
 from jaxtrack.manifold import make_manifold_prior
-
 
 # ----------------------------------------------------------------------------- resampling
 
@@ -95,7 +93,7 @@ def kalman(x0, ys):
 
 
 def test_sir_matches_kalman_filter(getkey):
-    truth, ys = linear_gaussian_data(getkey())
+    _truth, ys = linear_gaussian_data(getkey())
     x0 = jnp.zeros(2)
     sir = make_sir(gaussian_likelihood, Q, 4000, dtype=jnp.float64)
     expected_means, expected_evidence = kalman(x0, ys)
@@ -132,7 +130,7 @@ def test_apf_with_one_layer_and_beta_one_equals_sir(getkey):
 
 
 def test_apf_anneals_to_the_survival_target_and_tracks(getkey):
-    truth, ys = linear_gaussian_data(getkey(), frames=20)
+    _truth, ys = linear_gaussian_data(getkey(), frames=20)
     sharp = lambda poses, y: 25.0 * gaussian_likelihood(poses, y)  # noqa: E731  a peaky likelihood
     apf = make_apf(sharp, Q, 100, num_layers=5, dtype=jnp.float64)
     _, info = run_filter(apf, getkey(), jnp.zeros(2), ys)
@@ -262,7 +260,7 @@ def test_latent_filters_follow_the_manifold(walk_prior, getkey):
         make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 60, 3, s_final=np.full(32, 0.01), dtype=jnp.float64),
         make_latent_pf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 200, dtype=jnp.float64),
     ):
-        state, info = run_filter(tracker, getkey(), observations[0], observations)
+        _state, info = run_filter(tracker, getkey(), observations[0], observations)
         error = np.abs(np.asarray(info.estimate) - np.asarray(observations)).mean()
         assert np.all(np.isfinite(np.asarray(info.estimate)))
         assert error < 3 * recon_error + 0.01, (type(tracker).__name__, error, recon_error)
@@ -323,3 +321,131 @@ def test_transition_scales_recover_the_generating_ones(getkey):
     for i in range(2 * a):
         for step in (-0.05, 0.05):
             assert float(objective(at.at[i].add(step))) < float(objective(at))
+
+
+# ----------------------------------------------------------------------------- the SMC layer and its pieces
+
+def test_smc_layer_weights_are_tempered_likelihood_plus_correction(getkey):
+    """One layer by hand: with identity resampling, the moved particles are what ``move`` gave,
+    and the new log-weights are ``beta * l + correction`` normalised."""
+    from jaxtrack.filters import layer_keys, smc_layer
+
+    particles = jax.random.normal(getkey(), (6, 2), jnp.float64)
+    correction = jnp.linspace(-1.0, 0.0, 6)
+
+    def move(key, x):
+        return x + 1.0, correction
+
+    def log_likelihood(x):
+        return -jnp.sum(x**2, axis=1)
+
+    def keep(key, log_weights):
+        return jnp.arange(log_weights.shape[0])
+
+    moved, log_weights, info = smc_layer(
+        layer_keys(getkey(), 0), particles, jnp.zeros(6), move=move, log_likelihood=log_likelihood, resample=keep,
+        temper=lambda l: jnp.asarray(0.3, l.dtype),
+    )
+    np.testing.assert_allclose(moved, particles + 1.0)
+    expected = 0.3 * log_likelihood(particles + 1.0) + correction
+    np.testing.assert_allclose(log_weights, expected - jax.nn.logsumexp(expected), rtol=1e-12)
+    assert float(info.beta) == pytest.approx(0.3) and not bool(info.degenerate)
+    np.testing.assert_allclose(info.ess, 1.0 / np.sum(np.exp(2 * np.asarray(log_weights))), rtol=1e-12)
+    np.testing.assert_allclose(info.log_evidence, jax.nn.logsumexp(log_likelihood(particles + 1.0)) - np.log(6), rtol=1e-12)
+
+
+def test_latent_condensation_is_sir_is_one_layer_apf(walk_prior, getkey):
+    """003 Alg. 2 (LatentPF) is SIR over latent states, and APF with one layer and beta = 1 is
+    the same filter: equal particles for the same key."""
+    from jaxtrack.filters import APF, SIR, StateMean
+
+    prior, poses = walk_prior
+    latent_pf = make_latent_pf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 80, dtype=jnp.float64)
+    sir = SIR(latent_pf.dynamics, latent_pf.likelihood, 80, estimator=StateMean())
+    apf = APF(latent_pf.dynamics, latent_pf.likelihood, 80, 1, fixed_betas=(1.0,), estimator=StateMean())
+    key, observations = getkey(), jnp.asarray(poses[40:46])
+    results = [run_filter(f, key, observations[0], observations) for f in (latent_pf, sir, apf)]
+    for state, info in results[1:]:
+        np.testing.assert_allclose(state.particles, results[0][0].particles, rtol=1e-12)
+        np.testing.assert_allclose(info.estimate, results[0][1].estimate, rtol=1e-12)
+
+
+def test_runs_vmapped_over_keys_equal_separate_runs(walk_prior, getkey):
+    """``jax.vmap`` of ``run_filter`` over keys gives each run's own result (MRPF and GPAPF with
+    its final layer), and jit equals no jit for them."""
+    prior, poses = walk_prior
+    observations = jnp.asarray(poses[41:45])
+    trackers = (
+        make_mrpf(pose_likelihood, prior, np.full(32, 0.02), 0.1, np.full(26, 0.05), 30, dtype=jnp.float64),
+        make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 20, 2, s_final=np.full(32, 0.01), dtype=jnp.float64),
+    )
+    keys = jax.random.split(getkey(), 3)
+    for tracker in trackers:
+        _, batched = jax.vmap(lambda k, t=tracker: run_filter(t, k, jnp.asarray(poses[40]), observations))(keys)
+        for i, key in enumerate(keys):
+            _, single = run_filter(tracker, key, jnp.asarray(poses[40]), observations)
+            np.testing.assert_allclose(batched.estimate[i], single.estimate, rtol=1e-9, atol=1e-12)
+        with jax.disable_jit():
+            _, eager = run_filter(tracker, keys[0], jnp.asarray(poses[40]), observations)
+        np.testing.assert_allclose(eager.estimate, batched.estimate[0], rtol=1e-8, atol=1e-10)
+
+
+def test_estimators(walk_prior, getkey):
+    from jaxtrack.dynamics import make_pose_random_walk
+    from jaxtrack.filters import BestParticle, ProjectedMean, StateMean, WeightedMean, make_estimator
+
+    prior, poses = walk_prior
+    states = jnp.asarray(poses[:5])
+    log_weights = jnp.log(jnp.array([0.1, 0.2, 0.4, 0.2, 0.1]))
+    walk = make_pose_random_walk(np.full(32, 0.1), dtype=jnp.float64)
+    np.testing.assert_allclose(WeightedMean()(log_weights, states, walk), np.exp(log_weights) @ np.asarray(states))
+    np.testing.assert_allclose(BestParticle()(log_weights, states, walk), states[2])
+    np.testing.assert_allclose(StateMean()(log_weights, states, walk), np.exp(log_weights) @ np.asarray(states))
+    projected = ProjectedMean(prior)(log_weights, states, walk)
+    mean = np.exp(log_weights) @ np.asarray(states)
+    np.testing.assert_allclose(projected[:6], mean[:6])
+    np.testing.assert_allclose(projected[6:], prior.decode_mean(prior.encode(jnp.asarray(mean[None, 6:])))[0])
+    with pytest.raises(ValueError, match="projects onto a manifold"):
+        make_estimator("data_mean")
+    with pytest.raises(ValueError, match="estimator must be one of"):
+        make_estimator("median")
+
+
+def test_filters_refuse_parts_of_the_wrong_kind():
+    from jaxtrack.dynamics import make_pose_random_walk
+    from jaxtrack.filters import APF, SIR
+    from jaxtrack.likelihood import as_likelihood
+
+    walk = make_pose_random_walk(Q)
+    likelihood = as_likelihood(gaussian_likelihood)
+    with pytest.raises(TypeError, match="likelihood"):
+        SIR(walk, gaussian_likelihood, 10)
+    with pytest.raises(TypeError, match="dynamics"):
+        SIR(Q, likelihood, 10)
+    with pytest.raises(ValueError, match="variance_decay"):
+        APF(walk, likelihood, 10, 2, variance_decay=0.0)
+    with pytest.raises(ValueError, match=r"scales must have shape \(D,\)"):
+        make_pose_random_walk(jnp.ones((2, 2)))
+    with pytest.raises(ValueError, match="finite and non-negative"):
+        make_pose_random_walk(np.array([0.1, -1.0]))
+    with pytest.raises(TypeError, match="AbstractFilter"):
+        run_filter(lambda *a: None, jax.random.key(0), jnp.zeros(2), jnp.zeros((3, 2)))
+
+
+def test_changing_array_settings_does_not_recompile(getkey):
+    """Scales are traced leaves: a second tracker with other scales (or another key) reuses the
+    compiled scan; the likelihood function is traced once."""
+    from jaxtrack.likelihood import FunctionLikelihood
+
+    traces = []
+
+    def counting_likelihood(poses, y):
+        traces.append(1)
+        return gaussian_likelihood(poses, y)
+
+    _, ys = linear_gaussian_data(getkey(), frames=4)
+    likelihood = FunctionLikelihood(counting_likelihood)
+    for scales in (Q, 2 * Q, 0.5 * Q):
+        tracker = make_sir(likelihood, scales, 16, dtype=jnp.float64)
+        run_filter(tracker, getkey(), jnp.zeros(2), ys)
+    assert len(traces) == 1

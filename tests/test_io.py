@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from helpers import small_scene
 from jaxtrack.io import Sequence, SequenceFileError, load_sequence, save_sequence
+
+from helpers import small_scene
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,7 @@ def test_nan_is_reported_with_its_index(scene, tmp_path):
 def test_not_an_npz_and_unknown_keys(tmp_path):
     bad = tmp_path / "bad.npz"
     bad.write_text("hello")
-    with pytest.raises(SequenceFileError, match="not a readable .npz"):
+    with pytest.raises(SequenceFileError, match=r"not a readable \.npz"):
         load_sequence(bad)
     with pytest.raises(FileNotFoundError):
         load_sequence(tmp_path / "missing.npz")

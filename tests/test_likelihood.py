@@ -4,7 +4,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check, small_scene
 from jaxtrack.likelihood import (
     bidirectional_silhouette_cost,
     check_silhouettes,
@@ -14,6 +13,8 @@ from jaxtrack.likelihood import (
     suggest_window,
 )
 from jaxtrack.render import project_capsules, soft_silhouettes
+
+from helpers import finite_difference_check, small_scene
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +26,7 @@ def scene():
 
 def test_cost_equals_paper_equation_12(scene, getkey):
     """Direct NumPy evaluation of 000 eq. 12 on soft silhouettes, per view, averaged."""
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     body = motion.body
     poses = jnp.asarray(motion.pose[:1]) + 0.05 * jax.random.normal(getkey(), (3, 32))
     lik = make_silhouette_likelihood(body, rig, window=None, edge_width=1.0, scale=2.0)
@@ -53,7 +54,7 @@ def test_cost_bounds_and_zero_at_perfect_match():
 @pytest.mark.parametrize("case", ["fits", "some_overflow", "all_dense"])
 def test_windowed_matches_dense(scene, getkey, case):
     """All three paths of the windowed evaluation equal the dense reference."""
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     body, sk = motion.body, motion.body.skeleton
     poses = jnp.asarray(motion.pose[2]) + 0.02 * jax.random.normal(getkey(), (64, 32))
     # Two particles hold their arms out sideways: wider than a window sized on the data.
@@ -108,7 +109,7 @@ def test_true_pose_scores_best_on_noisy_scene(getkey):
 
 
 def test_likelihood_gradient_matches_finite_differences(scene, getkey):
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, window=(24, 16), edge_width=1.5)
     pose = jnp.asarray(motion.pose[3]) + 0.03 * jax.random.normal(getkey(), (32,))
     f = lambda p: lik.log_likelihood(p[None], observed[:, 3])[0]  # noqa: E731
@@ -117,7 +118,7 @@ def test_likelihood_gradient_matches_finite_differences(scene, getkey):
 
 
 def test_jit_vmap_and_no_jit_agree(scene, getkey):
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, silhouettes=observed)
     poses = jnp.asarray(motion.pose[0]) + 0.05 * jax.random.normal(getkey(), (3, 32))
     score = eqx.filter_jit(lambda l, p, o: l(p, o))
@@ -131,7 +132,7 @@ def test_jit_vmap_and_no_jit_agree(scene, getkey):
 
 @pytest.mark.slow
 def test_camera_behind_body_gives_minus_infinity(scene):
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, silhouettes=observed)
     centre = np.asarray(rig.centers[0])
     pose = jnp.asarray(motion.pose[0]).at[:3].set(jnp.asarray(centre + np.asarray(rig.R[0])[2] * -0.5))
@@ -148,7 +149,7 @@ def test_camera_behind_body_gives_minus_infinity(scene):
 
 
 def test_silhouette_validation(scene):
-    motion, rig, seq, observed = scene
+    motion, rig, seq, _observed = scene
     sil = np.array(seq.silhouettes)
     assert check_silhouettes(sil * 255, rig).max() == 1.0
     empty = sil.copy()
@@ -175,3 +176,20 @@ def test_suggest_window_ignores_clutter():
     sil[0, 55:58, 0:3] = 1  # a clutter blob far away
     rows, cols = suggest_window(sil, edge_width=1.0, row_margin=0.0, col_margin=0.0)
     assert rows == 30 + 4 and cols == 16
+
+
+def test_a_sum_of_likelihoods_is_a_likelihood():
+    from jaxtrack.likelihood import AbstractLikelihood, FunctionLikelihood, SumLikelihood, as_likelihood
+
+    a = as_likelihood(lambda poses, obs: -jnp.sum((poses - obs) ** 2, axis=1))
+    b = FunctionLikelihood(lambda poses, obs: -jnp.abs(poses[:, 0]))
+    total = a + b
+    assert isinstance(total, SumLikelihood) and isinstance(total, AbstractLikelihood)
+    poses, obs = jnp.array([[0.0, 1.0], [2.0, -1.0]]), jnp.array([1.0, 1.0])
+    np.testing.assert_allclose(total(poses, obs), a(poses, obs) + b(poses, obs))
+    np.testing.assert_allclose(jax.jit(total.log_likelihood)(poses, obs), [-1.0, -7.0])
+    assert as_likelihood(total) is total
+    with pytest.raises(TypeError, match="AbstractLikelihood or a callable"):
+        as_likelihood(3.0)
+    with pytest.raises(TypeError, match="one or more AbstractLikelihood"):
+        SumLikelihood(())

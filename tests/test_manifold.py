@@ -4,7 +4,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check
 from jaxtrack.body import forward_kinematics
 from jaxtrack.data import generate_motion
 from jaxtrack.manifold import (
@@ -16,6 +15,8 @@ from jaxtrack.manifold import (
     make_gplvm,
     predict,
 )
+
+from helpers import finite_difference_check
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,7 @@ def numpy_objective(Z, Y, beta, gamma, beta0, noise):
     d2 = ((Z[:, None] - Z[None]) ** 2).sum(-1)
     K = beta * np.exp(-0.5 * gamma * d2) + beta0 + noise * np.eye(len(Z))
     n, d = Y.shape
-    sign, logdet = np.linalg.slogdet(K)
+    _sign, logdet = np.linalg.slogdet(K)
     return -0.5 * d * n * np.log(2 * np.pi) - 0.5 * d * logdet - 0.5 * np.trace(np.linalg.solve(K, Y @ Y.T)) - 0.5 * np.sum(Z**2)
 
 
@@ -65,7 +66,7 @@ def test_autodiff_matches_hand_derived_equations_17_18(small_model):
 
 
 def test_gradients_match_finite_differences(walk_jog, getkey):
-    walk, jog = walk_jog
+    walk, _jog = walk_jog
     Y = walk.pose[:30, 6:]
     for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2), make_gpdm([Y[:15], Y[15:]], 2)):
         params, static = eqx.partition(model, model.trainable())
@@ -136,9 +137,9 @@ def test_fitting_walk_and_jog(walk_jog):
 def test_gpdm_respects_sequence_boundaries(walk_jog):
     walk, jog = walk_jog
     model = make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 2)
-    ins, outs, firsts = model._transitions()
+    ins, _outs, firsts = model._transitions()
     assert 19 not in ins and list(firsts) == [0, 20] and len(ins) == 19 + 9
-    fitted, info = fit_model(model, max_steps=100)
+    _fitted, info = fit_model(model, max_steps=100)
     assert info.objective > float(model.objective())
 
 
@@ -160,7 +161,9 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
     from jaxtrack.manifold import ModelFileError, load_model, save_model
 
     walk, jog = walk_jog
-    for model in (make_gplvm(walk.pose[:30, 6:], 2), make_bc_gplvm(walk.pose[:30, 6:], 2), make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 3)):
+    angles = walk.pose[:30, 6:]
+    models = (make_gplvm(angles, 2), make_bc_gplvm(angles, 2), make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 3))
+    for model in models:
         path = tmp_path / f"{type(model).__name__}.eqx"
         save_model(path, model, extra={"note": "test"})
         back, header = load_model(path)
@@ -205,7 +208,8 @@ def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
     for name, m in (("walk", walk), ("jog", jog)):
         save_sequence(tmp_path / f"{name}.npz", Sequence.create(fps=30.0, pose=m.pose[:40], pose_layout=layout))
     out = tmp_path / "model.eqx"
-    assert main(["fit", str(tmp_path / "walk.npz"), str(tmp_path / "jog.npz"), "--model", "gpdm", "--latent-dim", "2", "--steps", "50", "--out", str(out)]) == 0
+    arguments = ["fit", str(tmp_path / "walk.npz"), str(tmp_path / "jog.npz"), "--model", "gpdm", "--latent-dim", "2", "--steps", "50"]
+    assert main([*arguments, "--out", str(out)]) == 0
     assert main(["plot-latent", str(out)]) == 0
     image = iio.imread(tmp_path / "model_latent.png")
     assert image.shape[0] > 200
@@ -257,3 +261,36 @@ def test_cmu_walk_and_jog_manifold(shared_data):
     pca_mm = 1000 * np.linalg.norm(joints(np.asarray(linear.decode(linear.encode(jnp.asarray(held[:, 6:]))))) - truth, axis=-1).mean()
     print(f"CMU held-out walk 35_29: BC-GPLVM {gp_mm:.1f} mm, PCA {pca_mm:.1f} mm")
     assert gp_mm < pca_mm
+
+
+def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
+    from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
+
+    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "SparseGPLVM"}
+    walk, _ = walk_jog
+    Y = walk.pose[:30, 6:]
+    for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2)):
+        assert isinstance(model, AbstractManifold) and model.latent_dim == 2 and model.data_dim == 26
+        prior = make_manifold_prior(model, 32)
+        assert isinstance(prior, ManifoldPrior) and prior.global_dims == 6 and prior.pose_dim == 32
+        np.testing.assert_allclose(prior.training_poses(), Y, atol=1e-10)
+        z = model.training_latent()[:3]
+        np.testing.assert_allclose(prior.decode_mean(z), model.decode(z)[0], rtol=1e-10)
+        np.testing.assert_allclose(prior.encode(jnp.asarray(Y[:3])), model.encode(jnp.asarray(Y[:3])), rtol=1e-8, atol=1e-8)
+    assert make_manifold_prior(make_bc_gplvm(Y, 2), 32).has_back_constraint
+    assert not make_manifold_prior(make_gplvm(Y, 2), 32).has_back_constraint
+    with pytest.raises(TypeError, match="AbstractManifold subclass"):
+        register_manifold(dict)
+    with pytest.raises(TypeError, match="needs a fitted AbstractManifold"):
+        make_manifold_prior(fit_pca(Y, 2), 32)
+    with pytest.raises(ValueError, match="models 26 pose entries but the pose vector has only 20"):
+        make_manifold_prior(make_gplvm(Y, 2), 20)
+
+
+def test_a_model_built_directly_is_checked(walk_jog):
+    from jaxtrack.manifold import GPLVM, rbf_bias_kernel
+
+    with pytest.raises(ValueError, match=r"GPLVM: mean must have shape \(4,\)"):
+        GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros((5, 4)), mean=jnp.zeros(3), scale=jnp.ones(4))
+    with pytest.raises(ValueError, match="data must be"):
+        GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros(5), mean=jnp.zeros(3), scale=jnp.ones(4))

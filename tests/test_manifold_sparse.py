@@ -6,7 +6,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check
 from jaxtrack.data import generate_motion
 from jaxtrack.manifold import (
     MLPBackConstraint,
@@ -20,6 +19,8 @@ from jaxtrack.manifold import (
     save_model,
     sparse_log_marginal,
 )
+
+from helpers import finite_difference_check
 
 
 @pytest.fixture(scope="module")
@@ -113,10 +114,14 @@ def test_mlp_back_constraint_starts_at_pca_and_fits(walk_angles, getkey):
 
 def test_save_load_sparse_and_mlp(walk_angles, getkey, tmp_path):
     Y = walk_angles[:30]
-    for model in (make_sparse_gplvm(Y, 2, num_inducing=6, approximation="dtc"), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, depth=2, key=getkey())):
+    models = (
+        make_sparse_gplvm(Y, 2, num_inducing=6, approximation="dtc"),
+        make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, depth=2, key=getkey()),
+    )
+    for model in models:
         path = tmp_path / "model.eqx"
         save_model(path, model)
-        back, header = load_model(path)
+        back, _header = load_model(path)
         assert type(back) is type(model)
         assert float(back.objective()) == pytest.approx(float(model.objective()), rel=1e-12)
         z = jnp.ones((3, 2))

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.body import forward_kinematics, inverse_kinematics, retarget_positions
+from jaxtrack.body import inverse_kinematics, retarget_positions
 from jaxtrack.cli import main
 from jaxtrack.data import generate_motion
 from jaxtrack.io import (
@@ -220,7 +220,7 @@ def test_ik_and_mapping_errors():
     with pytest.raises(ValueError, match="no built-in joint mapping fits"):
         retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"])
     with pytest.raises(ValueError, match="lacks"):
-        retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"], {n: "zz" for n in __import__("jaxtrack").body.HUMANEVA_JOINTS})
+        retarget_positions(np.zeros((2, 3, 3)), ["a", "b", "c"], dict.fromkeys(__import__("jaxtrack").body.HUMANEVA_JOINTS, "zz"))
 
 
 @pytest.mark.slow

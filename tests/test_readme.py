@@ -13,6 +13,10 @@ def test_quick_example_runs():
     code = re.search(r"## Quick example\n\n```python\n(.*?)```", text, re.S).group(1)
     assert len(code.splitlines()) <= 20
     namespace = {}
-    exec(compile(code, "README quick example", "exec"), namespace)
-    loglik = np.asarray(namespace["loglik"])
-    assert loglik.shape == (500,) and np.all(np.isfinite(loglik)) and np.all(loglik <= 0)
+    # running the README's own example is the point of this test
+    exec(compile(code, "README quick example", "exec"), namespace)  # noqa: S102
+    assert namespace["info"].estimate.shape == (40, 32)
+    error = float(namespace["error"])
+    # SIR with a random walk fitted on another walk drifts here (95-120 mm over keys 3-8): this
+    # checks that the example runs and follows the person, not the tracker's accuracy.
+    assert np.isfinite(error) and error < 200, error

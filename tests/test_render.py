@@ -4,10 +4,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import finite_difference_check
 from jaxtrack.body import humaneva_body
 from jaxtrack.camera import default_rig
 from jaxtrack.render import hard_silhouettes, project_capsules, soft_silhouettes
+
+from helpers import finite_difference_check
 
 
 @pytest.fixture(scope="module")

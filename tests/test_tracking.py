@@ -8,8 +8,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from helpers import small_scene
-from jaxtrack.data import generate_motion, motion_sequence
 from jaxtrack.dynamics import AbstractDynamics, fit_pose_random_walk, gaussian_step
 from jaxtrack.experiment import ExperimentConfig, results_table, run_experiment
 from jaxtrack.filters import SIR, BestParticle
@@ -24,6 +22,8 @@ from jaxtrack.tracking import (
     tracker_index,
     unregister_tracker,
 )
+
+from helpers import small_experiment_sequences
 
 
 class DampedWalk(AbstractDynamics):
@@ -72,10 +72,7 @@ def damped_registered():
 
 @pytest.fixture(scope="module")
 def sequences():
-    _, _, scene = small_scene()
-    train = [motion_sequence(generate_motion(g, "S1", num_frames=30, fps=30.0, key=jax.random.key(i))) for i, g in enumerate(("walk", "jog"))]
-    validation = [motion_sequence(generate_motion("walk", "S1", num_frames=20, fps=30.0, key=jax.random.key(7)))]
-    return train, validation, [scene]
+    return small_experiment_sequences()
 
 
 def test_builtin_trackers_are_registered():

@@ -1,7 +1,15 @@
 """Body model: kinematic tree, pose vectors, joint limits, forward kinematics and capsule shape."""
 
+from ._ik import IKResult as IKResult
+from ._ik import fit_limb_lengths as fit_limb_lengths
+from ._ik import inverse_kinematics as inverse_kinematics
+from ._ik import solve_poses as solve_poses
 from ._kinematics import forward_kinematics as forward_kinematics
 from ._kinematics import global_rotation_matrices as global_rotation_matrices
+from ._retarget import BANDAI_TO_HUMANEVA as BANDAI_TO_HUMANEVA
+from ._retarget import CMU_TO_HUMANEVA as CMU_TO_HUMANEVA
+from ._retarget import guess_mapping as guess_mapping
+from ._retarget import retarget_positions as retarget_positions
 from ._shape import BodyModel as BodyModel
 from ._shape import humaneva_body as humaneva_body
 from ._skeleton import DEFAULT_LIMB_LENGTHS as DEFAULT_LIMB_LENGTHS
@@ -17,11 +25,3 @@ from ._skeleton import humaneva_skeleton as humaneva_skeleton
 from ._skeleton import joint_angles as joint_angles
 from ._skeleton import part_group_indices as part_group_indices
 from ._skeleton import with_offsets as with_offsets
-from ._ik import IKResult as IKResult
-from ._ik import fit_limb_lengths as fit_limb_lengths
-from ._ik import inverse_kinematics as inverse_kinematics
-from ._ik import solve_poses as solve_poses
-from ._retarget import BANDAI_TO_HUMANEVA as BANDAI_TO_HUMANEVA
-from ._retarget import CMU_TO_HUMANEVA as CMU_TO_HUMANEVA
-from ._retarget import guess_mapping as guess_mapping
-from ._retarget import retarget_positions as retarget_positions

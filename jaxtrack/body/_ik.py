@@ -16,8 +16,8 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 import lineax as lx
+import numpy as np
 import optimistix as optx
 
 from .._custom_types import Array, Float

@@ -63,7 +63,7 @@ def guess_mapping(joint_names: Sequence[str]) -> dict:
         ValueError: when no preset fits (pass a mapping explicitly).
     """
     names = set(joint_names)
-    for preset, mapping in PRESETS.items():
+    for mapping in PRESETS.values():
         needed = {n for v in mapping.values() for n in ((v,) if isinstance(v, str) else v)}
         if needed <= names:
             return dict(mapping)

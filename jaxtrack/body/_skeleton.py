@@ -307,7 +307,9 @@ def check_poses(skeleton: Skeleton, poses, name: str = "poses") -> np.ndarray:
         raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
     arr = arr.astype(np.float64) if not np.issubdtype(arr.dtype, np.floating) else arr
     if arr.ndim < 1 or arr.shape[-1] != skeleton.num_dofs:
-        raise ValueError(f"{name} must have {skeleton.num_dofs} numbers per pose (layout {skeleton.pose_layout[:4]}...), got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must have {skeleton.num_dofs} numbers per pose (layout {skeleton.pose_layout[:4]}...), got shape {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
         raise ValueError(f"{name} contain a non-finite value at index {bad} (pose entry {skeleton.pose_layout[bad[-1]]!r})")

@@ -256,7 +256,7 @@ def world_to_camera(rig: CameraRig, points: Float[Array, "*batch 3"]) -> Float[A
     return jnp.einsum("cij,...j->...ci", rig.R, points) + rig.t
 
 
-def distort(dist: Float[Array, "*#batch 5"], xy: Float[Array, "*#batch 2"]) -> Float[Array, "..."]:
+def distort(dist: Float[Array, "*#batch 5"], xy: Float[Array, "*#batch 2"]) -> Float[Array, ...]:
     """Apply OpenCV radial/tangential distortion to normalised image coordinates.
 
     ``dist`` (k1, k2, p1, p2, k3) and ``xy`` broadcast against each other.

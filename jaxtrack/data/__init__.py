@@ -10,5 +10,5 @@ from ._gait import random_subject as random_subject
 from ._scene import NO_NOISE as NO_NOISE
 from ._scene import SilhouetteNoise as SilhouetteNoise
 from ._scene import build_scene as build_scene
-from ._scene import scene_from_sequence as scene_from_sequence
 from ._scene import motion_sequence as motion_sequence
+from ._scene import scene_from_sequence as scene_from_sequence

@@ -206,7 +206,7 @@ def _joint_angles(skeleton, phi, gait: GaitParameters, style: SubjectStyle, amp)
 
 def _smooth_multipliers(key, cycles, T, sigma):
     """Per-stride random amplitude multipliers, linearly interpolated in stride phase."""
-    n = int(math.ceil(cycles.max())) + 2
+    n = math.ceil(cycles.max()) + 2
     if key is None:
         return {name: np.ones(T) for name in ("hip", "knee", "arm")}
     draws = np.asarray(jax.random.normal(key, (3, n)))

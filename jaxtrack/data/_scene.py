@@ -194,7 +194,7 @@ def build_scene(
     """
     check_poses(motion.body.skeleton, motion.pose, "motion poses")
     check_in_front(rig, motion.joints3d, what="the body")
-    height, width = image_shape(rig)
+    _height, _width = image_shape(rig)
     body = motion.body
     dtype = body.radii.dtype
     poses = jnp.asarray(motion.pose, dtype)
@@ -298,5 +298,7 @@ def scene_from_sequence(
         pose[:, horizontal] -= shift
         joints[..., :2] -= shift
     speed = float(np.mean(np.linalg.norm(np.diff(joints[:, 0, :2], axis=0), axis=1)) * sequence.fps) if len(joints) > 1 else 0.0
-    motion = SyntheticMotion(body=body, pose=pose, joints3d=joints, fps=float(sequence.fps), gait="recorded", subject="recorded", speed=speed)
+    motion = SyntheticMotion(
+        body=body, pose=pose, joints3d=joints, fps=float(sequence.fps), gait="recorded", subject="recorded", speed=speed
+    )
     return build_scene(key, motion, rig, noise, progress=progress)

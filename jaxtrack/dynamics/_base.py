@@ -79,10 +79,10 @@ def as_scale_vector(name: str, scales, size: int, dtype=None) -> np.ndarray:
 
 
 def motion_sequences(sequences, dims: int, name: str = "validation poses") -> list[np.ndarray]:
-    """One (T, D) pose array or a list of them as float64 arrays with T >= 2, finite;
+    """One (T, D) pose array or a list (or tuple) of them as float64 arrays with T >= 2, finite;
     raises ``ValueError`` naming the sequence otherwise."""
-    if isinstance(sequences, np.ndarray) and sequences.ndim == 2:
-        sequences = [sequences]
+    if not isinstance(sequences, (list, tuple)):
+        sequences = [sequences]  # one (T, D) array (NumPy or JAX)
     arrays = [np.asarray(s, np.float64) for s in sequences]
     if not arrays:
         raise ValueError(f"{name}: need at least one sequence")

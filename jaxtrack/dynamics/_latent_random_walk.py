@@ -4,6 +4,8 @@ and of the latent-space Condensation of 003 Alg. 2, ``omega_t = omega_{t-1} + N(
 
 from __future__ import annotations
 
+import itertools
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -65,7 +67,7 @@ def fit_latent_random_walk(
     s_global = rms_step([s[:, :g] for s in sequences], floor)
     train = np.asarray(manifold.training_latent, np.float64)
     starts = list(training_starts) if training_starts is not None else [0, len(train)]
-    pieces = [train[a:b] for a, b in zip(starts[:-1], starts[1:]) if b - a >= 2]
+    pieces = [train[a:b] for a, b in itertools.pairwise(starts) if b - a >= 2]
     if not pieces:
         raise ValueError(f"training_starts {starts} leave no training sequence of two or more frames")
     dtype = manifold.training_latent.dtype

@@ -47,6 +47,6 @@ def make_pose_random_walk(scales, pose_dim: int | None = None, *, dtype=jnp.floa
 def fit_pose_random_walk(validation, *, floor: float = 1e-3, dtype=jnp.float64) -> PoseRandomWalk:
     """The random walk whose scales are the RMS frame-to-frame steps of ``validation`` (one
     (T, D) pose array or a list of them), floored at ``floor`` so no entry is deterministic."""
-    first = validation if isinstance(validation, np.ndarray) and validation.ndim == 2 else validation[0]
-    sequences = motion_sequences(validation, np.shape(first)[1])
+    first = validation[0] if isinstance(validation, (list, tuple)) and validation else validation
+    sequences = motion_sequences(validation, np.shape(first)[-1])
     return PoseRandomWalk(jnp.asarray(rms_step(sequences, floor), dtype))

@@ -75,13 +75,14 @@ def shared_window(test, frames):
     return max(w[0] for w in windows), max(w[1] for w in windows)
 
 
-def run_experiment(train, validation, test, config: ExperimentConfig = ExperimentConfig(), *, out_dir=None,
+def run_experiment(train, validation, test, config: ExperimentConfig | None = None, *, out_dir=None,
                    names=None, progress=True, animations=True) -> dict:
     """Run the experiment; returns the results (and writes them under ``out_dir`` if given).
 
     Args:
         train, validation, test: lists of ``Sequence``.
-        config: the settings; ``config.methods`` are registered tracker names.
+        config: the settings (default ``ExperimentConfig()``); ``config.methods`` are registered
+            tracker names.
         names: dict with lists "train", "validation", "test" of display names (file names).
 
     Returns:
@@ -90,6 +91,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig = Experimen
         per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
         and "estimates" (first run's poses and joints).
     """
+    config = ExperimentConfig() if config is None else config
     say = print if progress else (lambda *a, **k: None)
     names = names or {}
     train_names = names.get("train") or [f"train{i}" for i in range(len(train))]

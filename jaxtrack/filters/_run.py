@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._custom_types import Array, Float, PRNGKeyArray
+from .._custom_types import ArrayLike, Float, PRNGKeyArray
 from ._base import AbstractFilter, FilterState, StepInfo
 
 
@@ -29,7 +29,7 @@ def _scan(filter_, key, initial_pose, observations):
 
 
 def run_filter(
-    filter_: AbstractFilter, key: PRNGKeyArray, initial_pose: Float[Array, " d"], observations: Any
+    filter_: AbstractFilter, key: PRNGKeyArray, initial_pose: Float[ArrayLike, " d"], observations: Any
 ) -> tuple[FilterState, StepInfo]:
     """Run a filter over a sequence in one jitted ``lax.scan``.
 

@@ -41,14 +41,14 @@ def log_mean_exp(values: Float[Array, " n"]) -> Float[Array, ""]:
     return jax.nn.logsumexp(clean) - jnp.log(values.shape[0]).astype(clean.dtype)
 
 
-def weighted_mean(log_weights: Float[Array, " n"], values: Float[Array, "n ..."]) -> Float[Array, "..."]:
+def weighted_mean(log_weights: Float[Array, " n"], values: Float[Array, "n ..."]) -> Float[Array, ...]:
     """``sum_i w_i v_i`` with normalised weights (uniform when degenerate)."""
     normalised, _ = normalise_log_weights(log_weights)
     w = jnp.exp(normalised).astype(values.dtype)
     return jnp.tensordot(w, values, axes=1)
 
 
-def best_particle(log_weights: Float[Array, " n"], values: Float[Array, "n ..."]) -> Float[Array, "..."]:
+def best_particle(log_weights: Float[Array, " n"], values: Float[Array, "n ..."]) -> Float[Array, ...]:
     """The particle of largest weight (the first one when degenerate)."""
     clean = jnp.where(jnp.isnan(log_weights), -jnp.inf, log_weights)
     return values[jnp.argmax(clean)]

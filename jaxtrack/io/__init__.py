@@ -1,13 +1,10 @@
 """File input and output: multi-view sequence files (``.npz``) and motion capture (ASF/AMC, BVH,
 3-D joint arrays) in metres, world frame, Z up."""
 
-from ._sequence import ARRAY_KEYS as ARRAY_KEYS
-from ._sequence import Sequence as Sequence
-from ._sequence import SequenceFileError as SequenceFileError
-from ._sequence import load_sequence as load_sequence
-from ._sequence import save_sequence as save_sequence
 from ._asf_amc import AsfSkeleton as AsfSkeleton
+from ._asf_amc import amc_channels as amc_channels
 from ._asf_amc import load_asf_amc as load_asf_amc
+from ._asf_amc import motion_from_amc_values as motion_from_amc_values
 from ._asf_amc import read_amc as read_amc
 from ._asf_amc import read_asf as read_asf
 from ._bvh import load_bvh as load_bvh
@@ -16,5 +13,8 @@ from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
 from ._mocap import MotionCapture as MotionCapture
 from ._mocap import MotionFileError as MotionFileError
-from ._asf_amc import amc_channels as amc_channels
-from ._asf_amc import motion_from_amc_values as motion_from_amc_values
+from ._sequence import ARRAY_KEYS as ARRAY_KEYS
+from ._sequence import Sequence as Sequence
+from ._sequence import SequenceFileError as SequenceFileError
+from ._sequence import load_sequence as load_sequence
+from ._sequence import save_sequence as save_sequence

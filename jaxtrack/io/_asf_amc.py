@@ -257,7 +257,7 @@ def load_asf_amc(
     if not fps > 0:
         raise ValueError(f"fps must be positive, got {fps}")
     skeleton = read_asf(asf_path)
-    channels, values = read_amc(amc_path, skeleton)
+    _channels, values = read_amc(amc_path, skeleton)
     return motion_from_amc_values(
         skeleton, values, fps, length_unit_m=length_unit_m, source=f"{os.fspath(asf_path)} + {os.fspath(amc_path)}"
     )

@@ -36,8 +36,8 @@ import numpy as np
 from .._custom_types import Array, Float, Int
 from ..body import BodyModel
 from ..camera import CameraRig, image_shape, pixel_grid
-from ._base import AbstractLikelihood
 from ..render import ProjectedCapsules, capsule_support, capsule_union, project_capsules
+from ._base import AbstractLikelihood
 
 
 def _area_and_overlap(sil, obs):

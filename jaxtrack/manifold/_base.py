@@ -13,6 +13,7 @@ import abc
 from typing import Any
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from .._custom_types import Array, Float
 
@@ -28,6 +29,14 @@ class AbstractManifold(eqx.Module):
     data: eqx.AbstractVar[Float[Array, "n a"]]
     mean: eqx.AbstractVar[Float[Array, " a"]]
     scale: eqx.AbstractVar[Float[Array, " a"]]
+
+    def __check_init__(self):
+        shape = jnp.shape(self.data)
+        if len(shape) != 2:
+            raise ValueError(f"{type(self).__name__}: data must be (frames, dims), got shape {shape}")
+        for name in ("mean", "scale"):
+            if jnp.shape(getattr(self, name)) != (shape[1],):
+                raise ValueError(f"{type(self).__name__}: {name} must have shape ({shape[1]},), got {jnp.shape(getattr(self, name))}")
 
     @abc.abstractmethod
     def training_latent(self) -> Float[Array, "n q"]:
@@ -78,8 +87,6 @@ class AbstractManifold(eqx.Module):
         Raises:
             ValueError: if ``poses`` is not (m, Da).
         """
-        import jax.numpy as jnp
-
         poses = jnp.asarray(poses, self.data.dtype)
         if poses.ndim != 2 or poses.shape[1] != self.data_dim:
             raise ValueError(f"poses must be (m, {self.data_dim}), got {poses.shape}")
@@ -105,7 +112,7 @@ class AbstractManifold(eqx.Module):
 MANIFOLD_CLASSES: dict[str, type[AbstractManifold]] = {}
 
 
-def register_manifold(cls: type[AbstractManifold]) -> type[AbstractManifold]:
+def register_manifold(cls):
     """Class decorator: make a manifold class saveable and loadable under its class name."""
     if not (isinstance(cls, type) and issubclass(cls, AbstractManifold)):
         raise TypeError(f"register_manifold takes an AbstractManifold subclass, got {cls!r}")

@@ -14,6 +14,8 @@ Training data are centred (and scaled per dimension to unit variance when ``scal
 
 from __future__ import annotations
 
+import itertools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -21,7 +23,6 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ._base import AbstractManifold, register_manifold
-from ._predictor import GPPredictor, full_gp_predictor
 from ._kernels import (
     LinearRBFKernel,
     RBFBiasKernel,
@@ -31,6 +32,7 @@ from ._kernels import (
     safe_cholesky,
     squared_distances,
 )
+from ._predictor import GPPredictor, full_gp_predictor
 
 
 def check_training_data(Y, latent_dim: int, name: str = "training poses") -> np.ndarray:
@@ -263,7 +265,7 @@ class GPDM(AbstractManifold):
         """Indices of (x_t, x_{t+1}) pairs that stay inside one sequence, and the first frames."""
         starts = self.sequence_starts
         inputs, outputs = [], []
-        for begin, end in zip(starts[:-1], starts[1:]):
+        for begin, end in itertools.pairwise(starts):
             inputs += list(range(begin, end - 1))
             outputs += list(range(begin + 1, end))
         return np.array(inputs), np.array(outputs), np.array(starts[:-1])
@@ -271,7 +273,7 @@ class GPDM(AbstractManifold):
     def objective(self):
         """Log posterior (negative of 001 eq. 11, up to a constant), to be maximised."""
         X, Y = self.latent, self.data
-        n, d = Y.shape
+        n, _d = Y.shape
         q = X.shape[1]
         w = jnp.exp(self.log_w)
         # ln p(Y | X, beta, W) (001 eq. 6): the GP likelihood of Y W, plus N ln|W|.
@@ -372,7 +374,8 @@ def make_bc_gplvm(
             raise ValueError("the MLP back-constraint needs an explicit PRNG key: pass key=... for its initial weights")
         projection = jnp.linalg.lstsq(Yj, Z0)[0]
         mlp = eqx.nn.MLP(Yj.shape[1], latent_dim, hidden, depth, activation=jnp.tanh, key=key, dtype=dtype)
-        mlp = eqx.tree_at(lambda m: (m.layers[-1].weight, m.layers[-1].bias), mlp, (jnp.zeros_like(mlp.layers[-1].weight), jnp.zeros_like(mlp.layers[-1].bias)))
+        last = mlp.layers[-1]
+        mlp = eqx.tree_at(lambda m: (m.layers[-1].weight, m.layers[-1].bias), mlp, (jnp.zeros_like(last.weight), jnp.zeros_like(last.bias)))
         back = MLPBackConstraint(projection=projection, bias=jnp.zeros(latent_dim, dtype), mlp=mlp)
     return BCGPLVM(
         back=back,

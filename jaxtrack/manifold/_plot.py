@@ -3,6 +3,7 @@ variance (as paper 001 Fig. 4a)."""
 
 from __future__ import annotations
 
+import itertools
 import os
 
 import jax.numpy as jnp
@@ -39,7 +40,7 @@ def plot_latent(model, path: str, *, sequence_starts=None, labels=None, resoluti
     )
     fig.colorbar(image, ax=ax, label="log10 predictive variance")
     starts = list(sequence_starts) if sequence_starts is not None else [0, len(Z)]
-    for i, (a, b) in enumerate(zip(starts[:-1], starts[1:])):
+    for i, (a, b) in enumerate(itertools.pairwise(starts)):
         name = labels[i] if labels is not None and i < len(labels) else f"sequence {i + 1}"
         ax.plot(Z[a:b, 0], Z[a:b, 1], ".-", ms=3, lw=0.6, label=name)
     ax.set_xlabel("latent 1")

@@ -61,4 +61,6 @@ def full_gp_predictor(kernel, latent, data, mean, scale) -> GPPredictor:
     eye = jnp.eye(latent.shape[0], dtype=latent.dtype)
     inverse = jax.scipy.linalg.cho_solve((L, True), eye)
     weights = jax.scipy.linalg.cho_solve((L, True), data)
-    return GPPredictor(support=latent, kernel=kernel, mean_weights=weights, variance_matrix=0.5 * (inverse + inverse.T), mean=mean, scale=scale)
+    return GPPredictor(
+        support=latent, kernel=kernel, mean_weights=weights, variance_matrix=0.5 * (inverse + inverse.T), mean=mean, scale=scale
+    )

@@ -40,7 +40,7 @@ def _factors(kernel: RBFBiasKernel, inducing, latent):
 def sparse_log_marginal(kernel: RBFBiasKernel, inducing, latent, Y, approximation: str = "vfe"):
     """The collapsed bound on ``ln p(Y|Z)`` (module docstring); (N, D) data, (M, q) inducing."""
     n, d = Y.shape
-    L, A, LB = _factors(kernel, inducing, latent)
+    _L, A, LB = _factors(kernel, inducing, latent)
     sigma2 = kernel.noise
     c = jax.scipy.linalg.solve_triangular(LB, A @ Y, lower=True) / jnp.sqrt(sigma2)
     value = (
