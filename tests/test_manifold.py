@@ -288,8 +288,20 @@ def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
 
 
 def test_a_model_built_directly_is_checked(walk_jog):
+    """``__check_init__`` refuses inconsistent shapes (checked with jaxtyping's own run-time
+    checks switched off, since they would refuse them first in the test suite)."""
+    import jaxtyping
+
     from jaxtrack.manifold import GPLVM, rbf_bias_kernel
 
+    jaxtyping.config.update("jaxtyping_disable", True)
+    try:
+        _check_direct_construction(GPLVM, rbf_bias_kernel)
+    finally:
+        jaxtyping.config.update("jaxtyping_disable", False)
+
+
+def _check_direct_construction(GPLVM, rbf_bias_kernel):
     with pytest.raises(ValueError, match=r"GPLVM: mean must have shape \(4,\)"):
         GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros((5, 4)), mean=jnp.zeros(3), scale=jnp.ones(4))
     with pytest.raises(ValueError, match="data must be"):

@@ -34,8 +34,8 @@ class DampedWalk(AbstractDynamics):
     rho: jax.Array
     scales: jax.Array
 
-    def init(self, pose):
-        return pose.astype(self.scales.dtype)
+    def init(self, key, pose, num_particles):
+        return jnp.broadcast_to(pose.astype(self.scales.dtype), (num_particles, pose.shape[0]))
 
     def to_pose(self, states):
         return states

@@ -1,8 +1,10 @@
 """Dynamics: how particle states move between frames (``AbstractDynamics``), each with the
-function that fits it to motion data: the pose random walk of SIR and APF, the latent random
-walk of GPAPF and 003's latent Condensation, and MRPF's manifold-regularised transition
-(000 eqs. 27-30, both proposals)."""
+function that fits it to motion data: the pose random walk of SIR and APF, second-order
+(constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
+Condensation, and MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals)."""
 
+from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
+from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
 from ._base import AbstractDynamics as AbstractDynamics
 from ._base import as_scale_vector as as_scale_vector
 from ._base import gaussian_step as gaussian_step

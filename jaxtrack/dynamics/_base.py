@@ -15,6 +15,7 @@ import abc
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float, PRNGKeyArray
@@ -24,8 +25,9 @@ class AbstractDynamics(eqx.Module):
     """A transition model ``p(s_t | s_{t-1})`` over particle states (S numbers each)."""
 
     @abc.abstractmethod
-    def init(self, pose: Float[Array, " dofs"]) -> Float[Array, " state"]:
-        """The state of one pose (000 Alg. 1 line 1 then duplicates it N times)."""
+    def init(self, key: PRNGKeyArray, pose: Float[Array, " dofs"], num_particles: int) -> Float[Array, "particles state"]:
+        """N initial states for a known initial pose (000 Alg. 1 line 1: N copies of it); the
+        key draws what the pose leaves unknown (e.g. the velocity of second-order dynamics)."""
 
     @abc.abstractmethod
     def to_pose(self, states: Float[Array, "particles state"]) -> Float[Array, "particles dofs"]:
@@ -46,6 +48,11 @@ class AbstractDynamics(eqx.Module):
     ) -> Float[Array, "particles state"]:
         """A zero-mean local move: the transition's noise, standard deviation times ``factor``,
         without its drift (the diffusion of annealing layer m, factor ``decay^(m/2)``)."""
+
+
+def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "particles state"]:
+    """``num_particles`` copies of one state."""
+    return jnp.broadcast_to(state, (num_particles,) + state.shape)
 
 
 def gaussian_step(key: PRNGKeyArray, states: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, "n s"]:

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, gaussian_step, motion_sequences, rms_step
+from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
 
 
 class LatentRandomWalk(AbstractDynamics):
@@ -31,10 +31,11 @@ class LatentRandomWalk(AbstractDynamics):
         check_scale_vector("s_global", self.s_global, self.manifold.global_dims)
         check_scale_vector("s_latent", self.s_latent, self.manifold.latent_dim)
 
-    def init(self, pose):
+    def init(self, key, pose, num_particles):
+        del key  # the pose and its latent point are the whole state
         pose = pose.astype(self.s_latent.dtype)
         g = self.manifold.global_dims
-        return jnp.concatenate([pose[:g], self.manifold.encode(pose[None, g:])[0]])
+        return copies(jnp.concatenate([pose[:g], self.manifold.encode(pose[None, g:])[0]]), num_particles)
 
     def to_pose(self, states):
         g = self.manifold.global_dims

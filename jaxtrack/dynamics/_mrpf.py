@@ -31,7 +31,7 @@ from jax.scipy.special import logsumexp
 
 from .._custom_types import Array, ArrayLike, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, gaussian_step, motion_sequences, rms_step
+from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
 MRPF_PROPOSALS = ("product", "prior")
@@ -75,8 +75,9 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         check_scale_vector("s_xz", self.s_xz, self.manifold.latent_dim)
         check_scale_vector("s_zx", self.s_zx, self.manifold.pose_dim - self.manifold.global_dims)
 
-    def init(self, pose):
-        return pose.astype(self.s_xx.dtype)
+    def init(self, key, pose, num_particles):
+        del key  # the pose is the whole state
+        return copies(pose.astype(self.s_xx.dtype), num_particles)
 
     def to_pose(self, states):
         return states

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractDynamics, as_scale_vector, check_scale_vector, gaussian_step, motion_sequences, rms_step
+from ._base import AbstractDynamics, as_scale_vector, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
 
 
 class PoseRandomWalk(AbstractDynamics):
@@ -23,8 +23,9 @@ class PoseRandomWalk(AbstractDynamics):
     def __check_init__(self):
         check_scale_vector("scales", self.scales, None)
 
-    def init(self, pose):
-        return pose.astype(self.scales.dtype)
+    def init(self, key, pose, num_particles):
+        del key  # the pose is the whole state
+        return copies(pose.astype(self.scales.dtype), num_particles)
 
     def to_pose(self, states):
         return states

@@ -9,7 +9,6 @@ from ._apf import APF as APF
 from ._base import AbstractFilter as AbstractFilter
 from ._base import FilterState as FilterState
 from ._base import StepInfo as StepInfo
-from ._base import duplicate as duplicate
 from ._estimators import AbstractEstimator as AbstractEstimator
 from ._estimators import BestParticle as BestParticle
 from ._estimators import ProjectedMean as ProjectedMean

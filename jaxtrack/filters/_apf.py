@@ -16,7 +16,7 @@ import jax.numpy as jnp
 from ..dynamics import AbstractDynamics
 from ..likelihood import AbstractLikelihood
 from ._annealing import check_annealing, choose_beta
-from ._base import AbstractFilter, FilterState, StepInfo, check_particles, duplicate
+from ._base import AbstractFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
 from ._resampling import get_resampler
 from ._sir import check_components
@@ -65,8 +65,8 @@ class APF(AbstractFilter):
             raise ValueError(f"variance_decay must be in (0, 1], got {self.variance_decay}")
 
     def init(self, key, initial_pose) -> FilterState:
-        del key
-        return duplicate(self.dynamics.init(initial_pose), self.num_particles)
+        particles = self.dynamics.init(key, initial_pose, self.num_particles)
+        return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
 
     def _temper(self, layer):
         if self.fixed_betas is not None:

@@ -15,7 +15,6 @@ import abc
 from typing import Any
 
 import equinox as eqx
-import jax.numpy as jnp
 
 from .._custom_types import Array, Bool, Float, PRNGKeyArray
 
@@ -66,12 +65,6 @@ class AbstractFilter(eqx.Module):
     @abc.abstractmethod
     def step(self, key: PRNGKeyArray, state: FilterState, observation: Any) -> tuple[FilterState, StepInfo]:
         """One frame: resample, propagate, weight, normalise, estimate (see ``smc_layer``)."""
-
-
-def duplicate(initial: Float[Array, " s"], num_particles: int) -> FilterState:
-    """``N`` copies of one state with uniform log-weights (000 Alg. 1 line 1)."""
-    particles = jnp.broadcast_to(initial, (num_particles,) + initial.shape)
-    return FilterState(particles=particles, log_weights=jnp.zeros(num_particles, initial.dtype))
 
 
 def check_particles(num_particles) -> None:

@@ -5,10 +5,11 @@ per frame. With the pose random walk this is SIR; with MRPF's transition it is M
 from __future__ import annotations
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from ..dynamics import AbstractDynamics
 from ..likelihood import AbstractLikelihood
-from ._base import AbstractFilter, FilterState, StepInfo, check_particles, duplicate
+from ._base import AbstractFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
 from ._resampling import get_resampler
 from ._smc import layer_keys, smc_layer
@@ -38,8 +39,8 @@ class SIR(AbstractFilter):
         check_components(self.dynamics, self.likelihood, self.estimator)
 
     def init(self, key, initial_pose) -> FilterState:
-        del key  # deterministic: N copies of the initial state
-        return duplicate(self.dynamics.init(initial_pose), self.num_particles)
+        particles = self.dynamics.init(key, initial_pose, self.num_particles)
+        return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         particles, log_weights, layer = smc_layer(
