@@ -139,6 +139,7 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
+        calibrate_shape=args.calibrate_shape,
     )
     train, train_names = _load_sequences(args.train)
     validation, validation_names = _load_sequences(args.validation)
@@ -168,7 +169,7 @@ def _track(args) -> int:
     model, header = load_model(args.model)
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
-        likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test),
+        likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
     )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
@@ -282,6 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
     experiment.add_argument("--seed", type=int, default=0)
+    experiment.add_argument("--calibrate-shape", action="store_true",
+                            help="fit the capsule radii to each test sequence's first frame before tracking")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
@@ -296,6 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--layers", type=int, default=5)
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
+    track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 

@@ -372,19 +372,21 @@ def test_latent_condensation_is_sir_is_one_layer_apf(walk_prior, getkey):
 
 def test_runs_vmapped_over_keys_equal_separate_runs(walk_prior, getkey):
     """``jax.vmap`` of ``run_filter`` over keys gives each run's own result (MRPF and GPAPF with
-    its final layer), and jit equals no jit for them."""
+    its final layer), and jit equals no jit (MRPF; the APF's is tested above)."""
     prior, poses = walk_prior
-    observations = jnp.asarray(poses[41:45])
+    observations = jnp.asarray(poses[41:43])
     trackers = (
         make_mrpf(pose_likelihood, prior, np.full(32, 0.02), 0.1, np.full(26, 0.05), 30, dtype=jnp.float64),
         make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 20, 2, s_final=np.full(32, 0.01), dtype=jnp.float64),
     )
     keys = jax.random.split(getkey(), 3)
-    for tracker in trackers:
+    for number, tracker in enumerate(trackers):
         _, batched = jax.vmap(lambda k, t=tracker: run_filter(t, k, jnp.asarray(poses[40]), observations))(keys)
         for i, key in enumerate(keys):
             _, single = run_filter(tracker, key, jnp.asarray(poses[40]), observations)
             np.testing.assert_allclose(batched.estimate[i], single.estimate, rtol=1e-9, atol=1e-12)
+        if number:
+            continue
         with jax.disable_jit():
             _, eager = run_filter(tracker, keys[0], jnp.asarray(poses[40]), observations)
         np.testing.assert_allclose(eager.estimate, batched.estimate[0], rtol=1e-8, atol=1e-10)

@@ -22,6 +22,8 @@ class ExperimentConfig:
         frames: track only the first ``frames`` frames of each test sequence (None: all).
         seed: base PRNG seed; tracker ``i`` of the registry runs with keys folded from
             ``fold_in(key(seed), i)``.
+        calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
+            its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
     """
 
     methods: tuple[str, ...] = PAPER_TRACKERS
@@ -33,6 +35,7 @@ class ExperimentConfig:
     likelihood_scale: float = 100.0
     frames: int | None = None
     seed: int = 0
+    calibrate_shape: bool = False
 
     def __post_init__(self):
         if not self.methods:

@@ -87,6 +87,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
 
     Returns:
         a dict with "config", "manifold", "dynamics" (each tracker's fitted parameters),
+        "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
         and "estimates" (first run's poses and joints).
@@ -105,7 +106,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
-    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "sequences": {}, "estimates": {}}
+    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "sequences": {}, "estimates": {},
+               "shape_calibration": {}}
     model, starts = None, None
     if config.needs_manifold:
         start = time.perf_counter()
@@ -125,7 +127,15 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     budget = Budget(config.budget, config.layers)
     window = shared_window(test, config.frames)
     for seq, name in zip(test, test_names):
-        scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window)
+        scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
+                             calibrate=config.calibrate_shape)
+        if scene.shape_calibration is not None:
+            report = scene.shape_calibration
+            results["shape_calibration"][name] = {
+                "capsules": list(report.capsule_names), "radii_before_m": report.radii_before.round(4).tolist(),
+                "radii_after_m": report.radii_after.round(4).tolist(), "cost_before": report.cost_before, "cost_after": report.cost_after,
+            }
+            say(f"{name}: body calibrated on frame 0, silhouette cost {report.cost_before:.3f} -> {report.cost_after:.3f}")
         groups = part_group_indices(scene.body.skeleton)
         per_method = {}
         for method in config.methods:

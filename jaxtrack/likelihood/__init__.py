@@ -5,6 +5,8 @@ from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
+from ._calibration import ShapeCalibration as ShapeCalibration
+from ._calibration import calibrate_shape as calibrate_shape
 from ._silhouette import SilhouetteLikelihood as SilhouetteLikelihood
 from ._silhouette import bidirectional_silhouette_cost as bidirectional_silhouette_cost
 from ._silhouette import check_silhouettes as check_silhouettes

@@ -19,7 +19,7 @@ from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
 from ..filters import run_filter
 from ..io import Sequence
-from ..likelihood import check_silhouettes, make_silhouette_likelihood
+from ..likelihood import calibrate_shape, check_silhouettes, make_silhouette_likelihood
 from ..manifold import fit_model, make_bc_gplvm
 from ._registry import Budget, MotionData, TrackerRecipe
 
@@ -111,6 +111,7 @@ class TestScene:
     truth_poses: np.ndarray  # (T, D)
     truth_joints: np.ndarray  # (T, J, 3)
     body: object
+    shape_calibration: object = None  # a ShapeCalibration when the body was calibrated
 
     @property
     def num_frames(self) -> int:
@@ -118,9 +119,11 @@ class TestScene:
 
 
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
-                 window="auto") -> TestScene:
+                 window="auto", calibrate: bool = False) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
-    ``frames`` frames, all when None)."""
+    ``frames`` frames, all when None). With ``calibrate``, the body's capsule radii are fitted
+    to the first frame's silhouettes at the initial pose (``likelihood.calibrate_shape``)
+    before tracking; the sequence's own ``capsule_radii`` (or the defaults) are the start."""
     check_test_sequence(sequence, name)
     total = sequence.silhouettes.shape[1]
     frames = total if frames is None else min(frames, total)
@@ -130,9 +133,14 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     truth_poses = sequence_poses(sequence, name, key=key)[:frames]
     truth = ground_truth_joints(sequence, truth_poses, body.skeleton)[:frames]
     likelihood = make_silhouette_likelihood(body, rig, scale=likelihood_scale, window=window, silhouettes=observed)
+    observations = np.moveaxis(observed, 1, 0)
+    report = None
+    if calibrate:
+        likelihood, report = calibrate_shape(likelihood, truth_poses[:1], observations[:1])
+        body = likelihood.body
     return TestScene(
-        likelihood=likelihood, observations=jnp.asarray(np.moveaxis(observed, 1, 0)),
-        initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE), truth_poses=truth_poses, truth_joints=truth, body=body,
+        likelihood=likelihood, observations=jnp.asarray(observations), initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE),
+        truth_poses=truth_poses, truth_joints=truth, body=body, shape_calibration=report,
     )
 
 
@@ -171,7 +179,8 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
-                   layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test"):
+                   layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
+                   calibrate: bool = False):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
@@ -183,7 +192,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     recipe.check_budget(budget_)
     check_model_layout(model, header, sequence, name)
     key = jax.random.key(seed)
-    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale)
+    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate)
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_)
