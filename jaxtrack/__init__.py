@@ -16,6 +16,7 @@ from . import dynamics as dynamics
 from . import evaluation as evaluation
 from . import experiment as experiment
 from . import filters as filters
+from . import image as image
 from . import io as io
 from . import likelihood as likelihood
 from . import manifold as manifold

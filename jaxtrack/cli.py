@@ -139,7 +139,7 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        calibrate_shape=args.calibrate_shape,
+        calibrate_shape=args.calibrate_shape, resolution=args.resolution,
     )
     train, train_names = _load_sequences(args.train)
     validation, validation_names = _load_sequences(args.validation)
@@ -180,6 +180,14 @@ def _track(args) -> int:
 
 
 _SCALE = 100.0
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 80x60, got {text!r}") from None
+    return width, height
 
 
 def _methods_help() -> str:
@@ -285,6 +293,9 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--seed", type=int, default=0)
     experiment.add_argument("--calibrate-shape", action="store_true",
                             help="fit the capsule radii to each test sequence's first frame before tracking")
+    experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
+                            help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
+                                 "(e.g. 80x60 for 320x240 data)")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)

@@ -67,3 +67,17 @@ def test_experiment_end_to_end(sequences, tmp_path):
     assert (tmp_path / "error_curves.png").stat().st_size > 1000
     assert list(tmp_path.glob("walk_*.gif"))
     assert results["manifold"]["class"] == "BCGPLVM"
+
+
+@pytest.mark.slow
+def test_experiment_calibrates_the_body_first(sequences, tmp_path):
+    """``calibrate_shape``: the radii are fitted on frame 0 of each test sequence, reported, and
+    the calibrated body lowers the silhouette cost there."""
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir",), budget=40, runs=1, frames=3, calibrate_shape=True)
+    results = run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]},
+                             progress=False, animations=False)
+    report = results["shape_calibration"]["walk.npz"]
+    assert len(report["radii_after_m"]) == len(report["capsules"]) == 15
+    assert report["cost_after"] <= report["cost_before"]
+    assert json.loads((tmp_path / "results.json").read_text())["config"]["calibrate_shape"] is True

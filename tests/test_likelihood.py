@@ -199,8 +199,9 @@ def test_a_sum_of_likelihoods_is_a_likelihood():
 def test_shape_calibration_recovers_known_radii():
     """Silhouettes rendered (clean, 160x120) from a body whose torso is 20 % thicker, legs 15 %
     thinner and arms 10 % thicker than the default: calibrating from the default capsules with
-    the poses known recovers the radii of every capsule that shows outside the others (the
-    clavicles and the neck hide inside the torso and head, and are left to the prior)."""
+    the poses known (and a weak prior, sd 0.5 in log radius) recovers the radii of every capsule
+    that shows outside the others (the clavicles and the neck hide inside the torso and head,
+    and are left to the prior)."""
     import dataclasses
 
     from jaxtrack.camera import default_rig
@@ -217,7 +218,7 @@ def test_shape_calibration_recovers_known_radii():
     observed = np.moveaxis(check_silhouettes(scene.silhouettes, rig), 1, 0)
     likelihood = make_silhouette_likelihood(default, rig, scale=100.0, window=None)
     frames = [0, 4, 8]
-    calibrated, report = calibrate_shape(likelihood, scene.pose[frames], observed[frames])
+    calibrated, report = calibrate_shape(likelihood, scene.pose[frames], observed[frames], prior_sd=0.5)
     visible = [i for i, n in enumerate(default.capsule_names) if n not in ("lclavicle", "rclavicle", "neck")]
     np.testing.assert_allclose(report.radii_after[visible], true_radii[visible], rtol=0.06)
     assert np.abs(report.radii_before[visible] / true_radii[visible] - 1).max() > 0.15  # it had something to correct

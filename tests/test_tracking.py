@@ -167,3 +167,27 @@ def test_build_casts_once_to_float32_and_clips(sequences):
     assert float(tracker.dynamics.scales[1]) == float(np.finfo(np.float32).max)
     with pytest.raises(ValueError, match="cannot be split into 3 equal annealing layers for APF"):
         build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3))
+
+
+def test_tracking_at_a_lower_resolution():
+    """A 160x120 scene tracked at 80x60: the silhouettes are block-averaged, the cameras rescaled,
+    and both agree with the scene rendered at 80x60 directly."""
+    from jaxtrack.camera import default_rig, project_points
+    from jaxtrack.data import NO_NOISE, build_scene, generate_motion
+    from jaxtrack.image import downsample_silhouettes
+    from jaxtrack.tracking import prepare_test
+
+    motion = generate_motion("walk", "S1", num_frames=3, fps=30.0, key=jax.random.key(0), dtype=jnp.float64)
+    fine = build_scene(jax.random.key(1), motion, default_rig(160, 120, dtype=jnp.float64), NO_NOISE)
+    coarse = build_scene(jax.random.key(1), motion, default_rig(80, 60, dtype=jnp.float64), NO_NOISE)
+    scene = prepare_test(fine, "fine", key=jax.random.key(2), resolution=(80, 60))
+    assert scene.observations.shape == (3, 4, 60, 80)
+    assert scene.likelihood.rig.image_size == ((80, 60),) * 4
+    agreement = np.mean(np.asarray(scene.observations) == np.moveaxis(coarse.silhouettes > 0, 1, 0))
+    assert agreement > 0.98, agreement
+    points = jnp.asarray(motion.joints3d[0], jnp.float32)
+    np.testing.assert_allclose(project_points(scene.likelihood.rig, points)[0], project_points(coarse.rig(dtype=jnp.float32), points)[0],
+                               atol=1e-3)
+    np.testing.assert_array_equal(downsample_silhouettes(np.array([[0, 255, 255, 255], [0, 0, 255, 0]]), 2, 1), [[0.0, 1.0]])
+    with pytest.raises(ValueError, match="cannot resample 160x120 images to 100x60"):
+        prepare_test(fine, "fine", key=jax.random.key(2), resolution=(100, 60))

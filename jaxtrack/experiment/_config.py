@@ -24,6 +24,8 @@ class ExperimentConfig:
             ``fold_in(key(seed), i)``.
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
+        resolution: (width, height) to track at: the test silhouettes are block-averaged down
+            to it and the cameras rescaled (None: as recorded).
     """
 
     methods: tuple[str, ...] = PAPER_TRACKERS
@@ -36,6 +38,7 @@ class ExperimentConfig:
     frames: int | None = None
     seed: int = 0
     calibrate_shape: bool = False
+    resolution: tuple[int, int] | None = None
 
     def __post_init__(self):
         if not self.methods:
@@ -51,6 +54,8 @@ class ExperimentConfig:
             raise ValueError("latent_dim and fit_steps must be positive")
         if not self.likelihood_scale > 0:
             raise ValueError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
+        if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
+            raise ValueError(f"resolution must be (width, height) in pixels, got {self.resolution}")
         budget = Budget(self.budget, self.layers)
         for recipe in recipes:
             recipe.check_budget(budget)

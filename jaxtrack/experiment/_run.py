@@ -18,6 +18,7 @@ import numpy as np
 
 from ..body import part_group_indices
 from ..evaluation import mean_joint_error_mm, per_frame_error_mm, per_group_error_mm
+from ..image import downsample_silhouettes
 from ..likelihood import suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
@@ -65,13 +66,16 @@ def dynamics_parameters(fitted) -> dict:
     return out
 
 
-def shared_window(test, frames):
+def shared_window(test, frames, resolution=None):
     """One likelihood window for all test sequences when their images agree in size, so each
     tracker compiles once (the window is a static shape); "auto" (per sequence) otherwise."""
     sizes = {tuple(np.asarray(s.silhouettes.shape[-2:])) for s in test}
     if len(sizes) != 1:
         return "auto"
-    windows = [suggest_window((s.silhouettes[:, :frames] > 0).astype(np.uint8)) for s in test]
+    masks = [s.silhouettes[:, :frames] for s in test]
+    if resolution is not None:
+        masks = [downsample_silhouettes(m, *resolution) for m in masks]
+    windows = [suggest_window((m > 0).astype(np.uint8)) for m in masks]
     return max(w[0] for w in windows), max(w[1] for w in windows)
 
 
@@ -125,10 +129,10 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = Budget(config.budget, config.layers)
-    window = shared_window(test, config.frames)
+    window = shared_window(test, config.frames, config.resolution)
     for seq, name in zip(test, test_names):
         scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
-                             calibrate=config.calibrate_shape)
+                             calibrate=config.calibrate_shape, resolution=config.resolution)
         if scene.shape_calibration is not None:
             report = scene.shape_calibration
             results["shape_calibration"][name] = {

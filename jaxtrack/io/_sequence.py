@@ -105,6 +105,22 @@ class Sequence:
         fields.update(changes)
         return _normalise_and_validate(fields, source="sequence")
 
+    def resized(self, width: int, height: int) -> Sequence:
+        """The sequence at a lower image resolution: silhouettes block-averaged (see
+        ``jaxtrack.image.downsample_silhouettes``), intrinsics rescaled with pixel centres kept
+        (``CameraRig.resized``), images dropped; ``width`` and ``height`` must divide the size."""
+        import numpy as np
+
+        from ..image import downsample_silhouettes
+
+        if not self.has_cameras:
+            raise SequenceFileError("the sequence has no cameras to resize")
+        rig = self.rig(dtype=np.float64).resized(width, height)
+        silhouettes = None if self.silhouettes is None else downsample_silhouettes(self.silhouettes, width, height)
+        return self.replace(
+            camera_K=np.asarray(rig.K), image_size=np.asarray(rig.image_size), silhouettes=silhouettes, images=None,
+        )
+
     @property
     def num_frames(self) -> int:
         for key in ("joints3d", "pose"):

@@ -119,14 +119,18 @@ class TestScene:
 
 
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
-                 window="auto", calibrate: bool = False) -> TestScene:
+                 window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames, all when None). With ``calibrate``, the body's capsule radii are fitted
     to the first frame's silhouettes at the initial pose (``likelihood.calibrate_shape``)
-    before tracking; the sequence's own ``capsule_radii`` (or the defaults) are the start."""
+    before tracking; the sequence's own ``capsule_radii`` (or the defaults) are the start. With
+    ``resolution`` = (width, height), the silhouettes are block-averaged down to it and the
+    cameras rescaled (``Sequence.resized``); it must divide the recorded size."""
     check_test_sequence(sequence, name)
     total = sequence.silhouettes.shape[1]
     frames = total if frames is None else min(frames, total)
+    if resolution is not None:
+        sequence = sequence.resized(*resolution)
     rig = sequence.rig(dtype=TRACKING_DTYPE)
     body = sequence.body(dtype=TRACKING_DTYPE)
     observed = check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames]
