@@ -277,6 +277,9 @@ def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
         z = model.training_latent()[:3]
         np.testing.assert_allclose(prior.decode_mean(z), model.decode(z)[0], rtol=1e-10)
         np.testing.assert_allclose(prior.encode(jnp.asarray(Y[:3])), model.encode(jnp.asarray(Y[:3])), rtol=1e-8, atol=1e-8)
+    fitted, info = make_gplvm(Y, 2).fit(max_steps=6, chunk=3)
+    reference, _ = fit_model(make_gplvm(Y, 2), max_steps=6, chunk=3)
+    assert info.steps == 6 and float(fitted.objective()) == pytest.approx(float(reference.objective()), rel=1e-12)
     assert make_manifold_prior(make_bc_gplvm(Y, 2), 32).has_back_constraint
     assert not make_manifold_prior(make_gplvm(Y, 2), 32).has_back_constraint
     with pytest.raises(TypeError, match="AbstractManifold subclass"):

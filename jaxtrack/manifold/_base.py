@@ -3,8 +3,8 @@
 
 A manifold maps joint angles (pose units) to a low-dimensional latent space and back: ``encode``
 (pose -> latent), ``decode`` (latent -> predictive mean and variance), a pure ``objective`` that
-``fit_model`` maximises over the leaves ``trainable`` marks, and a header/template pair that
-lets a saved file be read back into the right class and shapes.
+``fit`` (``fit_model``) maximises over the leaves ``trainable`` marks, and a header/template
+pair that lets a saved file be read back into the right class and shapes.
 """
 
 from __future__ import annotations
@@ -97,6 +97,14 @@ class AbstractManifold(eqx.Module):
         at latent points (000 eqs. 23-26). Factorises the covariance on every call: trackers
         use ``prior()`` once instead."""
         return self.predictor()(latent)
+
+    def fit(self, **options):
+        """Maximise ``objective()`` over the ``trainable()`` leaves: ``fit_model(self, **options)``
+        (L-BFGS; options ``max_steps``, ``chunk``, ``tolerance``, ``progress``). Returns
+        ``(fitted_model, FitInfo)``."""
+        from ._fit import fit_model
+
+        return fit_model(self, **options)
 
     def prior(self, global_dims: int):
         """This manifold precomputed for tracking (``ManifoldPrior``), covering the entries
