@@ -36,10 +36,11 @@ class APF(AbstractFilter):
         survival_target: the survival rate each layer's beta aims for (001: 0.5).
         variance_decay: the perturbation variance shrinks by this factor per layer.
         fixed_betas: (M,) exponents to use instead of choosing them.
-        final_layer: a pose-space dynamics for one more layer after the annealing (001 Alg. 3,
-            GPAPF's improved variant): it moves the poses of the annealed particles, weights
-            them (beta chosen for the survival target) and gives the estimate, their weighted
-            mean; the annealed particles are what the next frame starts from.
+        final_layer: a dynamics whose state is the pose (e.g. ``PoseRandomWalk``) for one more
+            layer after the annealing (001 Alg. 3, GPAPF's improved variant): it moves the
+            poses of the annealed particles, weights them (beta chosen for the survival target)
+            and gives the estimate, their weighted mean; the annealed particles are what the
+            next frame starts from.
         resampler, estimator: as for ``SIR``.
     """
 
