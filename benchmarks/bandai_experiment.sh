@@ -2,7 +2,7 @@
 # Paper 000's protocol (sec. 6, ../shared/METHODS.md sec. 4) on real motion: Bandai Namco
 # walk and run takes (../shared/data/bandai_walk_run, 30 Hz BVH) converted to HumanEva poses
 # at 60 Hz, the test takes rendered into 4 noisy 80x60 silhouette views; one manifold per
-# activity, trained on one take, noise scales fitted on another, tested on a third.
+# activity, trained on one take, dynamics fitted on another, tested on a third.
 #
 #   bash benchmarks/bandai_experiment.sh [OUT]          (RUNS=5 BUDGET=500 by default)
 #

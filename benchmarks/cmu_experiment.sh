@@ -2,7 +2,7 @@
 # Paper 000's protocol (sec. 6, ../shared/METHODS.md sec. 4) on real motion of one subject:
 # CMU subject 35 (../shared/data/cmu35, GPmat's 30 Hz trials) converted to HumanEva poses at
 # HumanEva's 60 Hz, the test trials rendered into 4 noisy 80x60 silhouette views. One manifold
-# per activity, trained on two trials, noise scales fitted on a third, tested on a held-out
+# per activity, trained on two trials, dynamics fitted on a third, tested on a held-out
 # trial (35_29 walk, first 200 frames; 35_18 jog, all of it).
 #
 #   bash benchmarks/cmu_experiment.sh [OUT]          (RUNS=5 BUDGET=500 by default)

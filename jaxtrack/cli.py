@@ -277,7 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     experiment = sub.add_parser("experiment", help="compare trackers the way paper 000 does (table, curves, animations)")
     experiment.add_argument("--train", nargs="+", required=True, help="training sequence files (pose or joints3d)")
-    experiment.add_argument("--validation", nargs="+", required=True, help="validation sequence file(s) for the noise scales")
+    experiment.add_argument("--validation", nargs="+", required=True,
+                            help="validation sequence file(s): the trackers' dynamics are fitted on them (000 sec. 5.2)")
     experiment.add_argument("--test", nargs="+", required=True, help="test sequence files with silhouettes, cameras and ground truth")
     experiment.add_argument("--methods", nargs="+", default=list(PAPER_TRACKERS), choices=available_trackers(),
                             help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
@@ -303,7 +304,8 @@ def build_parser() -> argparse.ArgumentParser:
     track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
     track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
     track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (bc-gplvm for mrpf)")
-    track.add_argument("--validation", required=True, help="validation sequence file for the noise scales (000 sec. 5.2)")
+    track.add_argument("--validation", required=True,
+                       help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
     track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
     track.add_argument("--budget", type=int, default=500)
