@@ -2,7 +2,7 @@
 the optional final full-pose layer of the improved GPAPF (001 Alg. 3).
 
 Layer 0 propagates by the dynamics; layers 1..M-1 perturb the particles with the dynamics'
-noise shrunk by ``variance_decay^(m/2)``. Each layer is one ``smc_layer`` whose exponent
+noise shrunk by ``variance_decay^(m/2)`` (one ``lax.scan`` over the layers). Each layer is one ``smc_layer`` whose exponent
 ``beta_m`` is chosen so that about ``survival_target`` of the particles survive
 (``fixed_betas`` overrides it). With the latent random walk this is GPAPF (001 Alg. 2).
 """
@@ -83,26 +83,24 @@ class APF(AbstractFilter):
         def log_likelihood(states):
             return self.likelihood(dynamics.to_pose(states), observation)
 
-        particles, log_weights, first = smc_layer(
-            layer_keys(anneal_key, 0), state.particles, state.log_weights, move=dynamics.propose,
-            log_likelihood=log_likelihood, resample=resample, temper=self._temper(0),
-        )
-
         def anneal(carry, m):
             particles, log_weights = carry
             factor = self.variance_decay ** (0.5 * m.astype(particles.dtype))
 
-            def perturb(k, x):
-                return dynamics.perturb(k, x, factor), jnp.zeros(x.shape[0], x.dtype)
+            def move(k, x):
+                # Layer 0 is the transition, later layers perturb; one layer body in one scan, so
+                # the likelihood is compiled once.
+                return jax.lax.cond(
+                    m == 0, lambda: dynamics.propose(k, x), lambda: (dynamics.perturb(k, x, factor), jnp.zeros(x.shape[0], x.dtype))
+                )
 
             particles, log_weights, info = smc_layer(
-                layer_keys(anneal_key, m), particles, log_weights, move=perturb, log_likelihood=log_likelihood,
+                layer_keys(anneal_key, m), particles, log_weights, move=move, log_likelihood=log_likelihood,
                 resample=resample, temper=self._temper(m),
             )
             return (particles, log_weights), info
 
-        (particles, log_weights), later = jax.lax.scan(anneal, (particles, log_weights), jnp.arange(1, self.num_layers))
-        layers = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), first, later)
+        (particles, log_weights), layers = jax.lax.scan(anneal, (state.particles, state.log_weights), jnp.arange(self.num_layers))
         degenerate = layers.degenerate
         if self.final_layer is None:
             estimate = self.estimator(log_weights, particles, dynamics)
@@ -116,7 +114,7 @@ class APF(AbstractFilter):
             estimate = WeightedMean()(final_weights, refined, final)
             degenerate = jnp.concatenate([degenerate, last.degenerate[None]])
         info = StepInfo(
-            estimate=estimate, ess=effective_sample_size(log_weights), log_evidence=first.log_evidence, betas=layers.beta,
+            estimate=estimate, ess=effective_sample_size(log_weights), log_evidence=layers.log_evidence[0], betas=layers.beta,
             survival=layers.ess / self.num_particles, degenerate=jnp.any(degenerate),
         )
         return FilterState(particles, log_weights), info
