@@ -231,7 +231,8 @@ def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
     n = 40000
     mrpf = make_mrpf(flat, prior, s_xx, s_xz=s_xz, s_zx=s_zx, num_particles=n, dtype=jnp.float64)
     state, info = run_filter(mrpf, getkey(), start, jnp.zeros((1, 1)))
-    x = np.asarray(state.particles)
+    x = np.asarray(mrpf.dynamics.to_pose(state.particles))
+    assert state.particles.shape == (n, 32 + 2)  # the state carries the latent draw
     np.testing.assert_allclose(float(info.ess[0]), n, rtol=1e-9)
     # the reference, written out from the equations
     z = np.asarray(prior.encode(start[None, 6:]))[0] + s_xz * np.asarray(jax.random.normal(getkey(), (n, 2), jnp.float64))

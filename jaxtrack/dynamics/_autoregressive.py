@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractDynamics, check_scale_vector, gaussian_step, motion_sequences
+from ._base import AbstractDynamics, check_scale_vector, gaussian_log_density, gaussian_step, motion_sequences
 
 
 class AutoregressivePoseDynamics(AbstractDynamics):
@@ -61,6 +61,15 @@ class AutoregressivePoseDynamics(AbstractDynamics):
     def perturb(self, key, states, factor):
         d = self.pose_dim
         return jnp.concatenate([gaussian_step(key, states[:, :d], self.scales * factor), states[:, d:]], axis=1)
+
+    def log_transition(self, previous, states):
+        # s_t's second half is s_{t-1}'s first, set exactly (a refined move leaves it alone).
+        d = self.pose_dim
+        current, before = previous[:, :d], previous[:, d:]
+        return gaussian_log_density(states[:, :d], current + self.damping * (current - before), self.scales)
+
+    def noise_scales(self):
+        return jnp.concatenate([self.scales, jnp.zeros_like(self.scales)])
 
 
 def fit_autoregressive_dynamics(

@@ -49,6 +49,21 @@ class AbstractDynamics(eqx.Module):
         """A zero-mean local move: the transition's noise, standard deviation times ``factor``,
         without its drift (the diffusion of annealing layer m, factor ``decay^(m/2)``)."""
 
+    def log_transition(
+        self, previous: Float[Array, "particles state"], states: Float[Array, "particles state"]
+    ) -> Float[Array, " particles"]:
+        """``ln p(s_t | s_{t-1})`` of each particle's pair, up to a constant that does not
+        depend on ``s_t``: the prior term of a gradient-refined move's target
+        (``jaxtrack.filters.LangevinRefinement``). Dynamics without a tractable density raise
+        ``NotImplementedError``."""
+        raise NotImplementedError(f"{type(self).__name__} defines no transition density, so its particles cannot be refined")
+
+    def noise_scales(self) -> Float[Array, " state"]:
+        """(S,) standard deviation of the transition's noise per state entry (0 for entries the
+        transition sets exactly): the preconditioner of a gradient-refined move, whose steps
+        leave zero-scale entries where they are."""
+        raise NotImplementedError(f"{type(self).__name__} defines no noise scales, so its particles cannot be refined")
+
 
 def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "particles state"]:
     """``num_particles`` copies of one state."""
@@ -58,6 +73,13 @@ def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "p
 def gaussian_step(key: PRNGKeyArray, states: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, "n s"]:
     """``s + N(0, diag(scales^2))`` for every particle."""
     return states + scales * jax.random.normal(key, states.shape, states.dtype)
+
+
+def gaussian_log_density(values: Float[Array, "n s"], means: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, " n"]:
+    """``sum_j ln N(values_j | means_j, scales_j^2)`` per row, without the constant
+    ``-sum_j ln(sqrt(2 pi) scales_j)`` (entries of zero scale are left out)."""
+    safe = jnp.where(scales > 0, scales, 1.0)
+    return -0.5 * jnp.sum(jnp.where(scales > 0, ((values - means) / safe) ** 2, 0.0), axis=-1)
 
 
 def check_scale_vector(name: str, scales, size: int | None):

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
+from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_density, gaussian_step, motion_sequences, rms_step
 
 
 class LatentRandomWalk(AbstractDynamics):
@@ -42,11 +42,16 @@ class LatentRandomWalk(AbstractDynamics):
         return self.manifold.compose(states[:, :g], states[:, g:])
 
     def propose(self, key, previous):
-        scales = jnp.concatenate([self.s_global, self.s_latent])
-        return gaussian_step(key, previous, scales), jnp.zeros(previous.shape[0], previous.dtype)
+        return gaussian_step(key, previous, self.noise_scales()), jnp.zeros(previous.shape[0], previous.dtype)
 
     def perturb(self, key, states, factor):
-        return gaussian_step(key, states, jnp.concatenate([self.s_global, self.s_latent]) * factor)
+        return gaussian_step(key, states, self.noise_scales() * factor)
+
+    def log_transition(self, previous, states):
+        return gaussian_log_density(states, previous, self.noise_scales())
+
+    def noise_scales(self):
+        return jnp.concatenate([self.s_global, self.s_latent])
 
 
 def fit_latent_random_walk(

@@ -31,7 +31,7 @@ from jax.scipy.special import logsumexp
 
 from .._custom_types import Array, ArrayLike, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
+from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_density, gaussian_step, motion_sequences, rms_step
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
 MRPF_PROPOSALS = ("product", "prior")
@@ -55,6 +55,10 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     With ``s_zx`` very large both reduce to ``PoseRandomWalk(s_xx)``. ``perturb`` is the eq. 29
     random walk with ``s_xx`` scaled.
 
+    The particle state is ``[x_t (D), z_t (q)]``: the pose and the latent draw it was made with
+    (the next draw depends on ``x_t`` alone, eq. 27), so that the transition has a density,
+    ``p(z_t | x_{t-1}) p(x_t | x_{t-1}, z_t)``, for gradient-refined moves.
+
     Attributes:
         manifold: a manifold with a back-constraint (BC-GPLVM).
         s_xx: (D,) eq. 29 scales; s_xz: (q,) eq. 27 scales; s_zx: (Da,) eq. 30 scales.
@@ -76,11 +80,13 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         check_scale_vector("s_zx", self.s_zx, self.manifold.pose_dim - self.manifold.global_dims)
 
     def init(self, key, pose, num_particles):
-        del key  # the pose is the whole state
-        return copies(pose.astype(self.s_xx.dtype), num_particles)
+        del key  # the pose and its back-constrained latent point
+        pose = pose.astype(self.s_xx.dtype)
+        latent = self.manifold.encode(pose[None, self.manifold.global_dims :])[0]
+        return copies(jnp.concatenate([pose, latent]), num_particles)
 
     def to_pose(self, states):
-        return states
+        return states[:, : self.manifold.pose_dim]
 
     def _product(self, previous, manifold_mean):
         """Mean (N, D) and standard deviation (D,) of eq. 28 normalised over x_t."""
@@ -92,16 +98,32 @@ class ManifoldRegularisedTransition(AbstractDynamics):
 
     def propose(self, key, previous):
         g = self.manifold.global_dims
+        previous = self.to_pose(previous)
         latent = gaussian_step(jax.random.fold_in(key, LATENT_STREAM), self.manifold.encode(previous[:, g:]), self.s_xz)
         manifold_mean = self.manifold.decode_mean(latent)
         if self.proposal == "prior":
             particles = gaussian_step(key, previous, self.s_xx)
-            return particles, -0.5 * jnp.sum(((particles[:, g:] - manifold_mean) / self.s_zx) ** 2, axis=1)
-        particles = gaussian_step(key, *self._product(previous, manifold_mean))
-        return particles, jnp.zeros(previous.shape[0], previous.dtype)
+            correction = gaussian_log_density(particles[:, g:], manifold_mean, self.s_zx)
+        else:
+            particles = gaussian_step(key, *self._product(previous, manifold_mean))
+            correction = jnp.zeros(previous.shape[0], previous.dtype)
+        return jnp.concatenate([particles, latent], axis=1), correction
 
     def perturb(self, key, states, factor):
-        return gaussian_step(key, states, self.s_xx * factor)
+        d = self.manifold.pose_dim
+        return jnp.concatenate([gaussian_step(key, states[:, :d], self.s_xx * factor), states[:, d:]], axis=1)
+
+    def log_transition(self, previous, states):
+        g, d = self.manifold.global_dims, self.manifold.pose_dim
+        before, pose, latent = previous[:, :d], states[:, :d], states[:, d:]
+        log_latent = gaussian_log_density(latent, self.manifold.encode(before[:, g:]), self.s_xz)  # eq. 27
+        manifold_mean = self.manifold.decode_mean(latent)
+        if self.proposal == "prior":  # eq. 29 times eq. 30, as Alg. 1 weighs it
+            return log_latent + gaussian_log_density(pose, before, self.s_xx) + gaussian_log_density(pose[:, g:], manifold_mean, self.s_zx)
+        return log_latent + gaussian_log_density(pose, *self._product(before, manifold_mean))  # eq. 28, normalised over x_t
+
+    def noise_scales(self):
+        return jnp.concatenate([self.s_xx, self.s_xz])
 
 
 def fit_mrpf_transition(

@@ -8,7 +8,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractDynamics, as_scale_vector, check_scale_vector, copies, gaussian_step, motion_sequences, rms_step
+from ._base import (
+    AbstractDynamics,
+    as_scale_vector,
+    check_scale_vector,
+    copies,
+    gaussian_log_density,
+    gaussian_step,
+    motion_sequences,
+    rms_step,
+)
 
 
 class PoseRandomWalk(AbstractDynamics):
@@ -35,6 +44,12 @@ class PoseRandomWalk(AbstractDynamics):
 
     def perturb(self, key, states, factor):
         return gaussian_step(key, states, self.scales * factor)
+
+    def log_transition(self, previous, states):
+        return gaussian_log_density(states, previous, self.scales)
+
+    def noise_scales(self):
+        return self.scales
 
 
 def make_pose_random_walk(scales, pose_dim: int | None = None, *, dtype=jnp.float32) -> PoseRandomWalk:

@@ -36,7 +36,7 @@ import numpy as np
 from .._custom_types import Array, Float, Int
 from ..body import BodyModel
 from ..camera import CameraRig, image_shape, pixel_grid
-from ..render import ProjectedCapsules, capsule_support, capsule_union, project_capsules
+from ..render import ProjectedCapsules, capsule_support, capsule_union, project_capsules, union_statistics
 from ._base import AbstractLikelihood
 
 
@@ -50,8 +50,8 @@ def silhouette_statistics_dense(
 ) -> tuple[Float[Array, "*batch views"], Float[Array, "*batch views"]]:
     """Model area ``A`` and overlap ``B`` per view, summing over every pixel (the reference)."""
     views, height, width = observed.shape
-    sil = capsule_union(caps, *_full_grid(caps, height, width), edge_width)
-    return _area_and_overlap(sil, observed.reshape(views, height * width).astype(sil.dtype))
+    obs = observed.reshape(views, height * width).astype(caps.radius.dtype)
+    return union_statistics(caps.start, caps.end, caps.radius, *_full_grid(caps, height, width), obs, edge_width)
 
 
 def _full_grid(caps, height, width):
@@ -74,6 +74,21 @@ def _window_origin(caps: ProjectedCapsules, edge_width, window, height, width):
         y0 + win_h - 1 < jnp.minimum(height - 1, hi[..., 1])
     )
     return x0.astype(jnp.int32), y0.astype(jnp.int32), overflow
+
+
+def _window_statistics(caps, observed, edge_width, window, x0, y0):
+    """``(A, B)`` summed over the (rows, cols) window at origin (x0, y0) of each particle-view."""
+    win_h, win_w = window
+    dtype = caps.radius.dtype
+    gv, gu = pixel_grid(win_h, win_w, dtype)
+    px = x0[..., None].astype(dtype) + gu.ravel()
+    py = y0[..., None].astype(dtype) + gv.ravel()
+
+    def cut(image, row, col):
+        return jax.lax.dynamic_slice(image, (row, col), (win_h, win_w)).ravel()
+
+    obs = jax.vmap(jax.vmap(cut), in_axes=(None, 0, 0))(observed.astype(dtype), y0, x0)
+    return union_statistics(caps.start, caps.end, caps.radius, px, py, obs, edge_width)
 
 
 def silhouette_statistics_windowed(
@@ -111,16 +126,7 @@ def silhouette_statistics_windowed(
     # The windowed pass runs at the top level and only the rare fix-ups are conditional
     # branches: on CPU, XLA fuses code inside a branch less well (measured 22 ms vs 15 ms for
     # 500 particles x 4 views when the windowed pass itself was a branch).
-    gv, gu = pixel_grid(win_h, win_w, dtype)
-    px = x0[..., None].astype(dtype) + gu.ravel()
-    py = y0[..., None].astype(dtype) + gv.ravel()
-    sil = capsule_union(caps, px, py, edge_width)
-
-    def cut(image, row, col):
-        return jax.lax.dynamic_slice(image, (row, col), (win_h, win_w)).ravel()
-
-    obs = jax.vmap(jax.vmap(cut), in_axes=(None, 0, 0))(observed, y0, x0)
-    window_area, window_overlap = _area_and_overlap(sil, obs)
+    window_area, window_overlap = _window_statistics(caps, observed, edge_width, window, x0, y0)
 
     def keep(_):
         return window_area, window_overlap
@@ -204,7 +210,7 @@ class SilhouetteLikelihood(AbstractLikelihood):
             area, overlap = silhouette_statistics_dense(caps, observed, self.edge_width.astype(dtype))
             overflowed = jnp.asarray(0)
         else:
-            area, overlap = _windowed_area_overlap(self, poses, observed)
+            area, overlap = _windowed_area_overlap((self, poses), observed)
             height, width = observed.shape[-2:]
             overflowed = jnp.sum(_window_origin(caps, self.edge_width.astype(dtype), self.window, height, width)[2])
         observed_area = jnp.sum(observed, axis=(-2, -1))
@@ -214,35 +220,65 @@ class SilhouetteLikelihood(AbstractLikelihood):
         return loglik, cost, overflowed
 
 
-@jax.custom_jvp
-def _windowed_area_overlap(likelihood: SilhouetteLikelihood, poses, observed):
-    """Windowed ``(A, B)``; its derivatives are taken through the dense reference.
+@eqx.filter_custom_vjp
+def _windowed_area_overlap(differentiable, observed):
+    """Windowed ``(A, B)`` of ``differentiable = (likelihood, poses)``.
 
-    Both evaluations are the same function of every input (see the module docstring), so the
-    dense JVP is the windowed one's. Differentiating the windowed code itself would compile
-    its three conditional branches forward and backward (about 45 s on CPU against 10 s).
+    The derivatives are the window pass's when every particle-view fits its window (then the
+    windowed sums equal the dense ones as functions of every input, see the module docstring),
+    and the dense evaluation's otherwise; both through ``union_statistics``'s backward pass.
+    Differentiating the windowed code itself would compile its three conditional branches
+    forward and backward (about 45 s on CPU against 10 s).
     """
-    dtype = poses.dtype
+    likelihood, poses = differentiable
     caps = project_capsules(likelihood.body, likelihood.rig, poses)
     area, overlap, _ = silhouette_statistics_windowed(
         caps,
         observed,
-        likelihood.edge_width.astype(dtype),
+        likelihood.edge_width.astype(poses.dtype),
         likelihood.window,
         reproject=lambda: project_capsules(likelihood.body, likelihood.rig, poses),
     )
     return area, overlap
 
 
-def _dense_area_overlap(likelihood: SilhouetteLikelihood, poses, observed):
+def _window_pass_area_overlap(differentiable, observed):
+    likelihood, poses = differentiable
+    caps = project_capsules(likelihood.body, likelihood.rig, poses)
+    edge_width = likelihood.edge_width.astype(poses.dtype)
+    x0, y0, _ = jax.lax.stop_gradient(_window_origin(caps, edge_width, likelihood.window, *observed.shape[1:]))
+    return _window_statistics(caps, observed, edge_width, likelihood.window, x0, y0)
+
+
+def _dense_area_overlap(differentiable, observed):
+    likelihood, poses = differentiable
     caps = project_capsules(likelihood.body, likelihood.rig, poses)
     return silhouette_statistics_dense(caps, observed, likelihood.edge_width.astype(poses.dtype))
 
 
-@_windowed_area_overlap.defjvp
-def _windowed_area_overlap_jvp(primals, tangents):
-    _, dense_tangents = jax.jvp(_dense_area_overlap, primals, tangents)
-    return _windowed_area_overlap(*primals), dense_tangents
+@_windowed_area_overlap.def_fwd
+def _windowed_area_overlap_fwd(perturbed, differentiable, observed):
+    del perturbed
+    return _windowed_area_overlap(differentiable, observed), None
+
+
+@_windowed_area_overlap.def_bwd
+def _windowed_area_overlap_bwd(residuals, cotangents, perturbed, differentiable, observed):
+    del residuals
+    likelihood, poses = differentiable
+    caps = project_capsules(likelihood.body, likelihood.rig, poses)
+    overflow = _window_origin(caps, likelihood.edge_width.astype(poses.dtype), likelihood.window, *observed.shape[1:])[2]
+    cotangents = jax.tree.map(lambda c, like: jnp.zeros_like(like) if c is None else c, cotangents, (caps.radius[..., 0],) * 2,
+                              is_leaf=lambda x: x is None)
+
+    def pullback(statistics):
+        _, vjp = eqx.filter_vjp(lambda d: statistics(d, observed), differentiable)
+        (grads,) = vjp(cotangents)
+        return eqx.filter(grads, eqx.is_array)
+
+    grads = jax.lax.cond(jnp.any(overflow), lambda: pullback(_dense_area_overlap), lambda: pullback(_window_pass_area_overlap))
+    # Only the leaves being differentiated get a cotangent.
+    return jax.tree.map(lambda g, p: g if p else None, grads, perturbed, is_leaf=lambda x: x is None)
 
 
 def make_silhouette_likelihood(

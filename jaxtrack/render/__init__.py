@@ -8,3 +8,4 @@ from ._soft_raster import hard_silhouettes as hard_silhouettes
 from ._soft_raster import project_capsules as project_capsules
 from ._soft_raster import soft_from_capsules as soft_from_capsules
 from ._soft_raster import soft_silhouettes as soft_silhouettes
+from ._soft_raster import union_statistics as union_statistics
