@@ -113,7 +113,6 @@ def silhouette_statistics_windowed(
             pick slower memory layouts for the main windowed pass (about 1.4x on CPU).
     """
     views, height, width = observed.shape
-    win_h, win_w = window
     num, dtype = caps.radius.shape[0], caps.radius.dtype
     observed = observed.astype(dtype)
     x0, y0, overflow = _window_origin(caps, edge_width, window, height, width)
