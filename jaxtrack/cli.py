@@ -139,7 +139,7 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        calibrate_shape=args.calibrate_shape, resolution=args.resolution,
+        calibrate_shape=args.calibrate_shape, resolution=args.resolution, refine_steps=args.refine_steps,
     )
     train, train_names = _load_sequences(args.train)
     validation, validation_names = _load_sequences(args.validation)
@@ -170,6 +170,7 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
+        refine_steps=args.refine_steps,
     )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
@@ -217,7 +218,7 @@ def load_plugins(argv) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .tracking import PAPER_TRACKERS, available_trackers
+    from .tracking import GRADIENT_COST, PAPER_TRACKERS, available_trackers
 
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -297,6 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
                             help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                                  "(e.g. 80x60 for 320x240 data)")
+    experiment.add_argument("--refine-steps", type=int, default=0,
+                            help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
+                                 f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
@@ -313,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
     track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
+    track.add_argument("--refine-steps", type=int, default=0,
+                       help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
+                                 f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 

@@ -1,6 +1,9 @@
 """Particle filter core: resamplers, weights, and each tracker against a reference with a known
 answer (Kalman filter, SIR)."""
 
+import functools
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -452,3 +455,131 @@ def test_changing_array_settings_does_not_recompile(getkey):
         tracker = make_sir(likelihood, scales, 16, dtype=jnp.float64)
         run_filter(tracker, getkey(), jnp.zeros(2), ys)
     assert len(traces) == 1
+
+
+# ----------------------------------------------------------------------------- gradient-refined particles
+
+
+def kalman_posterior(x0, ys):
+    """Final filtering mean and variance of the linear-Gaussian model of ``kalman``."""
+    mean, var = np.asarray(x0, np.float64), np.zeros(2)
+    for y in np.asarray(ys):
+        var = var + Q**2
+        gain = var / (var + R**2)
+        mean, var = mean + gain * (y - mean), (1 - gain) * var
+    return mean, var
+
+
+@pytest.mark.parametrize(("step_size", "adapt"), [(0.5, True), (3.0, False)])
+def test_mala_refined_sir_keeps_the_kalman_posterior(getkey, step_size, adapt):
+    """Resample-move with MALA leaves the filtering posterior unchanged: the refined SIR's final
+    particles have the Kalman filter's mean and variance, even with a step so large that most
+    moves are rejected (the Metropolis test corrects it), while unadjusted Langevin with the
+    same step does not."""
+    from jaxtrack.filters import LangevinRefinement
+
+    _truth, ys = linear_gaussian_data(getkey(), frames=12)
+    x0 = jnp.zeros(2)
+    mean, var = kalman_posterior(x0, ys)
+    refine = LangevinRefinement(num_steps=3, step_size=step_size, adapt=adapt)
+    sir = make_sir(gaussian_likelihood, Q, 20000, dtype=jnp.float64)
+    refined = eqx.tree_at(lambda f: f.refine, sir, refine, is_leaf=lambda x: x is None)
+    state, info = run_filter(refined, getkey(), x0, ys)
+    particles = np.asarray(state.particles)  # uniformly weighted after the move
+    np.testing.assert_allclose(particles.mean(0), mean, atol=0.05 * np.sqrt(var.max()))
+    np.testing.assert_allclose(particles.var(0), var, rtol=0.06)
+    rate = np.asarray(info.refine.acceptance)
+    assert rate.shape == (12, 3) and np.all((rate > 0) & (rate <= 1))
+    if not adapt:
+        assert rate.mean() < 0.5  # the large step is mostly rejected, and still exact
+        unadjusted = eqx.tree_at(lambda f: f.refine, sir, LangevinRefinement(3, step_size, metropolis=False, adapt=False),
+                                 is_leaf=lambda x: x is None)
+        biased = np.asarray(run_filter(unadjusted, getkey(), x0, ys)[0].particles)
+        assert np.abs(biased.var(0) / var - 1).max() > 0.2
+
+
+def test_refined_filters_same_key_same_result_jitted_or_not(walk_prior, getkey):
+    from jaxtrack.filters import LangevinRefinement
+
+    prior, poses = walk_prior
+    observations = jnp.asarray(poses[41:44])
+    refine = LangevinRefinement(num_steps=2)
+    trackers = [
+        make_sir(pose_likelihood, np.full(32, 0.02), 30, dtype=jnp.float64),
+        make_apf(pose_likelihood, np.full(32, 0.02), 20, num_layers=2, dtype=jnp.float64),
+        make_mrpf(pose_likelihood, prior, np.full(32, 0.02), s_xz=0.1, s_zx=0.05, num_particles=30, dtype=jnp.float64),
+        make_gpapf(pose_likelihood, prior, np.full(6, 0.02), np.full(2, 0.2), 20, 2, s_final=np.full(32, 0.01), dtype=jnp.float64),
+    ]
+    key = getkey()
+    for tracker in trackers:
+        tracker = eqx.tree_at(lambda f: f.refine, tracker, refine, is_leaf=lambda x: x is None)
+        jitted = run_filter(tracker, key, jnp.asarray(poses[40]), observations)[1]
+        with jax.disable_jit():
+            eager = run_filter(tracker, key, jnp.asarray(poses[40]), observations)[1]
+        np.testing.assert_allclose(jitted.estimate, eager.estimate, rtol=1e-7, atol=1e-9)
+        assert np.all(np.isfinite(np.asarray(jitted.estimate)))
+        unrefined = run_filter(eqx.tree_at(lambda f: f.refine, tracker, None), key, jnp.asarray(poses[40]), observations)[1]
+        assert not np.allclose(unrefined.estimate, jitted.estimate)  # the moves did something
+
+
+def test_refinement_moves_leave_each_transition_invariant(walk_prior, getkey):
+    """``log_transition`` is the density ``propose`` draws from: MALA moves targeting it alone
+    keep a sample of the transition a sample of it (for every dynamics that can be refined)."""
+    from jaxtrack.dynamics import AutoregressivePoseDynamics, LatentRandomWalk, ManifoldRegularisedTransition, PoseRandomWalk
+    from jaxtrack.filters import LangevinRefinement
+
+    prior, poses = walk_prior
+    d = 32
+    cases = [
+        PoseRandomWalk(jnp.full(d, 0.05)),
+        AutoregressivePoseDynamics(damping=jnp.full(d, 0.8), scales=jnp.full(d, 0.03), initial_speed=jnp.full(d, 0.05)),
+        LatentRandomWalk(prior, jnp.full(6, 0.02), jnp.full(2, 0.2)),
+        ManifoldRegularisedTransition(prior, jnp.full(d, 0.05), jnp.full(2, 0.1), jnp.full(26, 0.03)),
+    ]
+    n = 20000
+    for dynamics in cases:
+        start = dynamics.init(getkey(), jnp.asarray(poses[40]), n)
+        previous = dynamics.propose(getkey(), start)[0]  # distinct previous states
+        drawn = dynamics.propose(getkey(), previous)[0]
+        target = functools.partial(dynamics.log_transition, previous)
+        moved, info = LangevinRefinement(num_steps=4)(getkey(), drawn, target, dynamics.noise_scales())
+        a, b = np.asarray(drawn - previous), np.asarray(moved - previous)
+        scale = a.std(0) + 1e-12
+        assert np.abs((a.mean(0) - b.mean(0)) / scale).max() < 0.06, type(dynamics).__name__
+        np.testing.assert_allclose(b.std(0), a.std(0), rtol=0.06, atol=1e-9, err_msg=type(dynamics).__name__)
+        assert float(np.asarray(info.acceptance).mean()) > 0.3
+
+
+def test_refinement_with_an_impossible_likelihood_leaks_no_nans(getkey):
+    from jaxtrack.filters import LangevinRefinement
+
+    impossible = lambda x, y: jnp.full(x.shape[0], -jnp.inf, x.dtype)  # noqa: E731
+    sir = make_sir(impossible, Q, 50, dtype=jnp.float64)
+    refined = eqx.tree_at(lambda f: f.refine, sir, LangevinRefinement(2), is_leaf=lambda x: x is None)
+    _, info = run_filter(refined, getkey(), jnp.zeros(2), jnp.zeros((3, 2)))
+    assert np.all(np.isfinite(np.asarray(info.estimate)))
+    assert np.all(np.asarray(info.refine.acceptance) == 0)
+
+
+def test_refinement_needs_a_transition_density():
+    from jaxtrack.dynamics import AbstractDynamics
+    from jaxtrack.filters import SIR, LangevinRefinement
+    from jaxtrack.likelihood import as_likelihood
+
+    class Opaque(AbstractDynamics):
+        def init(self, key, pose, num_particles):
+            return jnp.broadcast_to(pose, (num_particles, pose.shape[0]))
+
+        def to_pose(self, states):
+            return states
+
+        def propose(self, key, previous):
+            return previous, jnp.zeros(previous.shape[0])
+
+        def perturb(self, key, states, factor):
+            return states
+
+    with pytest.raises(ValueError, match="defines no transition density"):
+        SIR(Opaque(), as_likelihood(gaussian_likelihood), 10, refine=LangevinRefinement())
+    with pytest.raises(ValueError, match="num_steps must be a positive integer"):
+        LangevinRefinement(num_steps=0)

@@ -169,6 +169,29 @@ def test_build_casts_once_to_float32_and_clips(sequences):
         build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3))
 
 
+def test_refined_budget_pays_for_gradients_with_particles():
+    """A budget with refined moves buys fewer particles (a gradient counts as ``gradient_cost``
+    evaluations), and ``build_tracker`` gives any SIR- or APF-built tracker the moves."""
+    from jaxtrack.dynamics import PoseRandomWalk
+    from jaxtrack.filters import LangevinRefinement
+    from jaxtrack.likelihood import as_likelihood
+
+    budget = Budget(500, 5, refine_steps=2, gradient_cost=10.0)
+    assert (budget.particles, budget.per_layer) == (500 // 21, 500 // 25)
+    assert Budget(500, 5).per_layer == 100 and Budget(500).particles == 500
+    fitted = PoseRandomWalk(jnp.full(3, 0.1, jnp.float64))
+    flat = as_likelihood(lambda poses, obs: jnp.zeros(poses.shape[0], poses.dtype))
+    sir = build_tracker(get_tracker("sir"), fitted, flat, Budget(100, 1, 2, 10.0))
+    assert sir.num_particles == 100 // 21 and sir.refine == LangevinRefinement(2)
+    apf = build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3, 1, 10.0))  # no divisibility needed
+    assert apf.num_particles == 100 // 13 and apf.refine.num_steps == 1
+    assert build_tracker(get_tracker("sir"), fitted, flat, Budget(100)).refine is None
+    with pytest.raises(ValueError, match="cannot pay for one particle"):
+        Budget(100, 5, refine_steps=3)
+    with pytest.raises(ValueError, match="the budget pays for 2"):
+        build_tracker(get_tracker("sir"), fitted, flat, Budget(100, 1, 2, 10.0), LangevinRefinement(3))
+
+
 def test_tracking_at_a_lower_resolution():
     """A 160x120 scene tracked at 80x60: the silhouettes are block-averaged, the cameras rescaled,
     and both agree with the scene rendered at 80x60 directly."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..tracking import PAPER_TRACKERS, Budget, get_tracker
+from ..tracking import GRADIENT_COST, PAPER_TRACKERS, Budget, get_tracker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,6 +26,11 @@ class ExperimentConfig:
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
         resolution: (width, height) to track at: the test silhouettes are block-averaged down
             to it and the cameras rescaled (None: as recorded).
+        refine_steps: gradient-refined (MALA) moves per particle per frame after the weighting
+            (``jaxtrack.filters.LangevinRefinement``), paid for out of ``budget`` at
+            ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
+        gradient_cost: what a likelihood gradient counts as, in evaluations (measured by
+            ``benchmarks/bench_gradient.py``).
     """
 
     methods: tuple[str, ...] = PAPER_TRACKERS
@@ -39,6 +44,8 @@ class ExperimentConfig:
     seed: int = 0
     calibrate_shape: bool = False
     resolution: tuple[int, int] | None = None
+    refine_steps: int = 0
+    gradient_cost: float = GRADIENT_COST
 
     def __post_init__(self):
         if not self.methods:
@@ -56,9 +63,14 @@ class ExperimentConfig:
             raise ValueError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
             raise ValueError(f"resolution must be (width, height) in pixels, got {self.resolution}")
-        budget = Budget(self.budget, self.layers)
+        budget = self.tracking_budget
         for recipe in recipes:
             recipe.check_budget(budget)
+
+    @property
+    def tracking_budget(self) -> Budget:
+        """The per-frame ``Budget`` every tracker spends."""
+        return Budget(self.budget, self.layers, self.refine_steps, self.gradient_cost)
 
     @property
     def needs_manifold(self) -> bool:

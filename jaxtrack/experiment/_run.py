@@ -22,7 +22,6 @@ from ..image import downsample_silhouettes
 from ..likelihood import suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
-    Budget,
     build_tracker,
     check_test_sequence,
     fit_manifold,
@@ -128,7 +127,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         fitted[method] = fit_tracker(get_tracker(method), fit_key, motion)
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
-    budget = Budget(config.budget, config.layers)
+    budget = config.tracking_budget
     window = shared_window(test, config.frames, config.resolution)
     for seq, name in zip(test, test_names):
         scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,

@@ -1,5 +1,6 @@
 """Particle filters (``AbstractFilter``) built from one SMC layer: ``SIR`` (one layer per frame)
-and ``APF`` (annealed layers, optional final full-pose layer), each with any dynamics and
+and ``APF`` (annealed layers, optional final full-pose layer), optionally with gradient-refined
+particles (``LangevinRefinement``), each with any dynamics and
 likelihood; the papers' trackers as presets; resamplers, weights, estimators and the one jitted
 runner (../shared/METHODS.md section 2)."""
 
@@ -20,6 +21,9 @@ from ._presets import make_gpapf as make_gpapf
 from ._presets import make_latent_pf as make_latent_pf
 from ._presets import make_mrpf as make_mrpf
 from ._presets import make_sir as make_sir
+from ._refine import LangevinRefinement as LangevinRefinement
+from ._refine import RefineInfo as RefineInfo
+from ._refine import resample_and_refine as resample_and_refine
 from ._resampling import RESAMPLERS as RESAMPLERS
 from ._resampling import get_resampler as get_resampler
 from ._resampling import multinomial as multinomial

@@ -18,8 +18,9 @@ from ..likelihood import AbstractLikelihood
 from ._annealing import check_annealing, choose_beta
 from ._base import AbstractFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
+from ._refine import LangevinRefinement, resample_and_refine
 from ._resampling import get_resampler
-from ._sir import check_components
+from ._sir import REFINE_STREAM, check_components, check_refinement
 from ._smc import layer_keys, smc_layer
 from ._weights import effective_sample_size
 
@@ -42,6 +43,9 @@ class APF(AbstractFilter):
             and gives the estimate, their weighted mean; the annealed particles are what the
             next frame starts from.
         resampler, estimator: as for ``SIR``.
+        refine: gradient-refined moves after the annealing layers and before the final layer
+            (``LangevinRefinement``), targeting the untempered posterior given each particle's
+            ancestor in the previous frame; or None.
     """
 
     dynamics: AbstractDynamics
@@ -54,12 +58,14 @@ class APF(AbstractFilter):
     final_layer: AbstractDynamics | None = None
     resampler: str = eqx.field(static=True, default="systematic")
     estimator: AbstractEstimator = WeightedMean()
+    refine: LangevinRefinement | None = None
 
     def __check_init__(self):
         check_particles(self.num_particles)
         check_annealing(self.num_layers, self.survival_target, self.fixed_betas)
         get_resampler(self.resampler)
         check_components(self.dynamics, self.likelihood, self.estimator)
+        check_refinement(self.refine, self.dynamics)
         if self.final_layer is not None and not isinstance(self.final_layer, AbstractDynamics):
             raise TypeError(f"final_layer must be an AbstractDynamics or None, got {type(self.final_layer).__name__}")
         if not 0.0 < self.variance_decay <= 1.0:
@@ -84,7 +90,7 @@ class APF(AbstractFilter):
             return self.likelihood(dynamics.to_pose(states), observation)
 
         def anneal(carry, m):
-            particles, log_weights = carry
+            particles, log_weights, previous = carry
             factor = self.variance_decay ** (0.5 * m.astype(particles.dtype))
 
             def move(k, x):
@@ -98,9 +104,17 @@ class APF(AbstractFilter):
                 layer_keys(anneal_key, m), particles, log_weights, move=move, log_likelihood=log_likelihood,
                 resample=resample, temper=self._temper(m),
             )
-            return (particles, log_weights), info
+            # Each particle's state in the previous frame, followed through the layers' resampling.
+            return (particles, log_weights, previous[info.ancestors]), info
 
-        (particles, log_weights), layers = jax.lax.scan(anneal, (state.particles, state.log_weights), jnp.arange(self.num_layers))
+        carry = (state.particles, state.log_weights, state.particles)
+        (particles, log_weights, previous), layers = jax.lax.scan(anneal, carry, jnp.arange(self.num_layers))
+        refine_info = None
+        if self.refine is not None:
+            particles, log_weights, refine_info = resample_and_refine(
+                self.refine, jax.random.fold_in(key, REFINE_STREAM), particles, previous, log_weights, dynamics=dynamics,
+                log_likelihood=log_likelihood, resample=resample,
+            )
         degenerate = layers.degenerate
         if self.final_layer is None:
             estimate = self.estimator(log_weights, particles, dynamics)
@@ -115,6 +129,6 @@ class APF(AbstractFilter):
             degenerate = jnp.concatenate([degenerate, last.degenerate[None]])
         info = StepInfo(
             estimate=estimate, ess=effective_sample_size(log_weights), log_evidence=layers.log_evidence[0], betas=layers.beta,
-            survival=layers.ess / self.num_particles, degenerate=jnp.any(degenerate),
+            survival=layers.ess / self.num_particles, degenerate=jnp.any(degenerate), refine=refine_info,
         )
         return FilterState(particles, log_weights), info

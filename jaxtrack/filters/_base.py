@@ -41,6 +41,7 @@ class StepInfo(eqx.Module):
         betas: (M,) annealing exponents per layer (ones for unannealed filters).
         survival: (M,) survival rate ``ESS / N`` per layer.
         degenerate: whether any layer's weights were all ``-inf``/NaN (then made uniform).
+        refine: the ``RefineInfo`` of gradient-refined moves (None without them).
     """
 
     estimate: Float[Array, " d"]
@@ -49,6 +50,7 @@ class StepInfo(eqx.Module):
     betas: Float[Array, " m"]
     survival: Float[Array, " m"]
     degenerate: Bool[Array, ""]
+    refine: Any = None
 
 
 class AbstractFilter(eqx.Module):

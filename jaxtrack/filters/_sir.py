@@ -5,14 +5,18 @@ per frame. With the pose random walk this is SIR; with MRPF's transition it is M
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from ..dynamics import AbstractDynamics
 from ..likelihood import AbstractLikelihood
 from ._base import AbstractFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
+from ._refine import LangevinRefinement, resample_and_refine
 from ._resampling import get_resampler
 from ._smc import layer_keys, smc_layer
+
+REFINE_STREAM = 104729  # fold_in tag of a frame's refinement key (without refinement, no key changes)
 
 
 class SIR(AbstractFilter):
@@ -25,6 +29,8 @@ class SIR(AbstractFilter):
         num_particles: N, the likelihood evaluations per frame.
         resampler: "systematic", "stratified", "multinomial" or "residual".
         estimator: how the frame's pose is estimated (default: the weighted mean).
+        refine: gradient-refined moves after the weighting (``LangevinRefinement``), or None.
+            Each costs ``refine.num_steps`` likelihood gradients per particle per frame.
     """
 
     dynamics: AbstractDynamics
@@ -32,22 +38,33 @@ class SIR(AbstractFilter):
     num_particles: int = eqx.field(static=True)
     resampler: str = eqx.field(static=True, default="systematic")
     estimator: AbstractEstimator = WeightedMean()
+    refine: LangevinRefinement | None = None
 
     def __check_init__(self):
         check_particles(self.num_particles)
         get_resampler(self.resampler)
         check_components(self.dynamics, self.likelihood, self.estimator)
+        check_refinement(self.refine, self.dynamics)
 
     def init(self, key, initial_pose) -> FilterState:
         particles = self.dynamics.init(key, initial_pose, self.num_particles)
         return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
+        def log_likelihood(s):
+            return self.likelihood(self.dynamics.to_pose(s), observation)
+
+        resample = get_resampler(self.resampler)
         particles, log_weights, layer = smc_layer(
-            layer_keys(key, 0), state.particles, state.log_weights, move=self.dynamics.propose,
-            log_likelihood=lambda s: self.likelihood(self.dynamics.to_pose(s), observation),
-            resample=get_resampler(self.resampler),
+            layer_keys(key, 0), state.particles, state.log_weights, move=self.dynamics.propose, log_likelihood=log_likelihood,
+            resample=resample,
         )
+        refine_info = None
+        if self.refine is not None:
+            particles, log_weights, refine_info = resample_and_refine(
+                self.refine, jax.random.fold_in(key, REFINE_STREAM), particles, state.particles[layer.ancestors], log_weights,
+                dynamics=self.dynamics, log_likelihood=log_likelihood, resample=resample,
+            )
         info = StepInfo(
             estimate=self.estimator(log_weights, particles, self.dynamics),
             ess=layer.ess,
@@ -55,6 +72,7 @@ class SIR(AbstractFilter):
             betas=layer.beta[None],
             survival=(layer.ess / self.num_particles)[None],
             degenerate=layer.degenerate,
+            refine=refine_info,
         )
         return FilterState(particles, log_weights), info
 
@@ -68,3 +86,15 @@ def check_components(dynamics, likelihood, estimator) -> None:
             raise TypeError(f"{name} must be an {kind.__name__}, got {type(value).__name__}{hint}")
 
 
+
+
+def check_refinement(refine, dynamics) -> None:
+    """Raise unless ``refine`` is None, or a ``LangevinRefinement`` and ``dynamics`` defines the
+    transition density and noise scales its moves need."""
+    if refine is None:
+        return
+    if not isinstance(refine, LangevinRefinement):
+        raise TypeError(f"refine must be a LangevinRefinement or None, got {type(refine).__name__}")
+    if type(dynamics).log_transition is AbstractDynamics.log_transition or type(dynamics).noise_scales is AbstractDynamics.noise_scales:
+        raise ValueError(f"{type(dynamics).__name__} defines no transition density (log_transition, noise_scales), "
+                         "so its particles cannot be refined")

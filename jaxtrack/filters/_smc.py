@@ -14,18 +14,20 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 
-from .._custom_types import Array, Bool, Float, PRNGKeyArray
+from .._custom_types import Array, Bool, Float, Int, PRNGKeyArray
 from ._weights import effective_sample_size, log_mean_exp, normalise_log_weights
 
 
 class LayerInfo(eqx.Module):
     """Per layer: the exponent ``beta`` applied to the log-likelihood, the ESS of the new weights,
-    whether they were degenerate, and ``ln mean_i exp(l_i)`` of the untempered log-likelihoods."""
+    whether they were degenerate, ``ln mean_i exp(l_i)`` of the untempered log-likelihoods, and
+    each new particle's ancestor (its index in the incoming particles)."""
 
     beta: Float[Array, ""]
     ess: Float[Array, ""]
     degenerate: Bool[Array, ""]
     log_evidence: Float[Array, ""]
+    ancestors: Int[Array, " n"]
 
 
 def layer_keys(key: PRNGKeyArray, layer) -> tuple[PRNGKeyArray, PRNGKeyArray]:
@@ -71,5 +73,6 @@ def smc_layer(
         beta = temper(log_lik)
         tempered = beta * log_lik
     new_log_weights, degenerate = normalise_log_weights(tempered + log_correction)
-    info = LayerInfo(beta=beta, ess=effective_sample_size(new_log_weights), degenerate=degenerate, log_evidence=log_mean_exp(log_lik))
+    info = LayerInfo(beta=beta, ess=effective_sample_size(new_log_weights), degenerate=degenerate, log_evidence=log_mean_exp(log_lik),
+                     ancestors=ancestors)
     return moved, new_log_weights, info

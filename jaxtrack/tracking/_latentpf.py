@@ -11,7 +11,7 @@ def fit(key, motion):
 
 
 def build(dynamics, likelihood, budget):
-    return SIR(dynamics, likelihood, budget.evaluations, estimator=StateMean())
+    return SIR(dynamics, likelihood, budget.particles, estimator=StateMean())
 
 
 RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,

@@ -15,7 +15,7 @@ def fit_printed(key, motion):
 
 
 def build(dynamics, likelihood, budget):
-    return SIR(dynamics, likelihood, budget.evaluations)
+    return SIR(dynamics, likelihood, budget.particles)
 
 
 RECIPE = TrackerRecipe("mrpf", "MRPF", "manifold regularised particle filter, eq. 28 sampled exactly (000)", fit_product, build,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from .._custom_types import PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
-from ..filters import run_filter
+from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import calibrate_shape, check_silhouettes, make_silhouette_likelihood
 from ..manifold import fit_model, make_bc_gplvm
@@ -94,10 +95,22 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
         return recipe.fit(key, motion)
 
 
-def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget):
-    """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast)."""
+def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None):
+    """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
+
+    With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
+    ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``): its ``refine`` field
+    is set, so any tracker whose filter has one (``SIR``, ``APF``) can be refined."""
     recipe.check_budget(budget)
-    return recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    if not budget.refine_steps:
+        return tracker
+    refinement = LangevinRefinement(budget.refine_steps) if refinement is None else refinement
+    if refinement.num_steps != budget.refine_steps:
+        raise ValueError(f"the refinement makes {refinement.num_steps} moves, the budget pays for {budget.refine_steps}")
+    if not hasattr(tracker, "refine"):
+        raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'refine' field: it cannot be refined")
+    return eqx.tree_at(lambda f: f.refine, tracker, refinement, is_leaf=lambda x: x is None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,7 +197,7 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False):
+                   calibrate: bool = False, refine_steps: int = 0):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
@@ -192,7 +205,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     from ._registry import get_tracker, tracker_index
 
     recipe = get_tracker(method)
-    budget_ = Budget(budget, layers)
+    budget_ = Budget(budget, layers, refine_steps)
     recipe.check_budget(budget_)
     check_model_layout(model, header, sequence, name)
     key = jax.random.key(seed)

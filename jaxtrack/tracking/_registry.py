@@ -17,24 +17,52 @@ import numpy as np
 
 from ..manifold import ManifoldPrior
 
+# A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
+# 2 CPU cores (benchmarks/bench_gradient.py).
+GRADIENT_COST = 50.0
+
 
 @dataclasses.dataclass(frozen=True)
 class Budget:
-    """Likelihood evaluations per frame, and the annealing layers they may be split into."""
+    """Likelihood evaluations per frame, the annealing layers they may be split into, and the
+    gradient-refined moves (``LangevinRefinement``) per particle they must also pay for.
+
+    A refined move costs one likelihood gradient per particle, counted as ``gradient_cost``
+    evaluations (its measured cost), so ``N (layers + refine_steps * gradient_cost)`` stays
+    within ``evaluations``.
+    """
 
     evaluations: int
     layers: int = 1
+    refine_steps: int = 0
+    gradient_cost: float = GRADIENT_COST
 
     def __post_init__(self):
         for name in ("evaluations", "layers"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"budget {name} must be a positive integer, got {value!r}")
+        if isinstance(self.refine_steps, bool) or not isinstance(self.refine_steps, int) or self.refine_steps < 0:
+            raise ValueError(f"budget refine_steps must be a non-negative integer, got {self.refine_steps!r}")
+        if not self.gradient_cost > 0:
+            raise ValueError(f"budget gradient_cost must be positive, got {self.gradient_cost!r}")
+        if self.particles_for(self.layers) < 1:
+            raise ValueError(f"a budget of {self.evaluations} evaluations cannot pay for one particle through {self.layers} "
+                             f"layers and {self.refine_steps} refined moves at {self.gradient_cost:g} evaluations a gradient")
+
+    def particles_for(self, layers: int) -> int:
+        """Particles per layer of a tracker with ``layers`` layers per frame."""
+        return int(self.evaluations // (layers + self.refine_steps * self.gradient_cost))
+
+    @property
+    def particles(self) -> int:
+        """Particles of a one-layer tracker (SIR and its kin)."""
+        return self.particles_for(1)
 
     @property
     def per_layer(self) -> int:
         """Particles per layer when the budget is split into ``layers`` equal layers."""
-        return self.evaluations // self.layers
+        return self.particles_for(self.layers)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,7 +98,9 @@ class TrackerRecipe:
         fit: ``(key, MotionData) -> fitted`` (a dynamics module, or a pytree of them), run once
             per experiment in float64.
         build: ``(fitted, likelihood, Budget) -> AbstractFilter``, run per test sequence on the
-            fitted parameters cast to the tracking precision.
+            fitted parameters cast to the tracking precision; one-layer trackers take
+            ``budget.particles`` particles, annealed ones ``budget.per_layer`` per layer (both
+            leave room for gradient-refined moves, which ``build_tracker`` adds).
         needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
@@ -97,7 +127,7 @@ class TrackerRecipe:
             return
         if budget.layers < self.min_layers:
             raise ValueError(f"{self.label} needs at least {self.min_layers} layers, got {budget.layers}")
-        if budget.evaluations % budget.layers:
+        if budget.evaluations % budget.layers and not budget.refine_steps:
             raise ValueError(
                 f"a budget of {budget.evaluations} likelihood evaluations cannot be split into {budget.layers} equal "
                 f"annealing layers for {self.label}; use a multiple of {budget.layers}"

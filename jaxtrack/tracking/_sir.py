@@ -11,7 +11,7 @@ def fit(key, motion):
 
 
 def build(dynamics, likelihood, budget):
-    return SIR(dynamics, likelihood, budget.evaluations)
+    return SIR(dynamics, likelihood, budget.particles)
 
 
 RECIPE = TrackerRecipe("sir", "SIR", "sampling importance resampling with a pose random walk (001 eqs. 1-4)", fit, build)

@@ -12,7 +12,7 @@ def fit(key, motion):
 
 
 def build_sir(dynamics, likelihood, budget):
-    return SIR(dynamics, likelihood, budget.evaluations)
+    return SIR(dynamics, likelihood, budget.particles)
 
 
 def build_apf(dynamics, likelihood, budget):
