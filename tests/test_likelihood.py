@@ -108,13 +108,13 @@ def test_true_pose_scores_best_on_noisy_scene(getkey):
     assert wins == seq.num_frames
 
 
+@pytest.mark.slow
 def test_likelihood_gradient_matches_finite_differences(scene, getkey):
     motion, rig, _seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, window=(24, 16), edge_width=1.5)
     pose = jnp.asarray(motion.pose[3]) + 0.03 * jax.random.normal(getkey(), (32,))
     f = lambda p: lik.log_likelihood(p[None], observed[:, 3])[0]  # noqa: E731
-    finite_difference_check(f, pose, jax.random.normal(getkey(), (32,)) * 0.1, rtol=1e-4, atol=1e-8)
-    assert np.all(np.isfinite(jax.jit(jax.grad(f))(pose)))
+    finite_difference_check(f, pose, jax.random.normal(getkey(), (32,)) * 0.1, rtol=1e-4, atol=1e-8)  # checks finiteness too
 
 
 def test_jit_vmap_and_no_jit_agree(scene, getkey):
