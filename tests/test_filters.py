@@ -522,6 +522,7 @@ def test_refined_filters_same_key_same_result_jitted_or_not(walk_prior, getkey):
         assert not np.allclose(unrefined.estimate, jitted.estimate)  # the moves did something
 
 
+@pytest.mark.slow
 def test_refinement_moves_leave_each_transition_invariant(walk_prior, getkey):
     """``log_transition`` is the density ``propose`` draws from: MALA moves targeting it alone
     keep a sample of the transition a sample of it (for every dynamics that can be refined)."""

@@ -89,6 +89,7 @@ def test_render_jit_and_vmap(setup, getkey):
         np.testing.assert_allclose(batched, other, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_union_statistics_backward_pass_equals_autodiff_of_the_product(getkey):
     """The recomputing backward pass of ``union_statistics`` against reverse-mode autodiff of
     the unrolled union, including pixels deep inside a capsule (an exact zero of ``1 - o``)."""
