@@ -28,6 +28,15 @@ def test_bad_experiment_inputs(sequences):
         ExperimentConfig(methods=("sir", "sir"))
     with pytest.raises(ValueError, match="GPAPF needs at least 2 layers"):
         ExperimentConfig(methods=("gpapf",), budget=100, layers=1)
+    with pytest.raises(ValueError, match="MRPF cannot run on a gpdm manifold"):
+        ExperimentConfig(methods=("mrpf",), manifold="gpdm")
+    with pytest.raises(ValueError, match="manifold must be one of"):
+        ExperimentConfig(manifold="isomap")
+    # Each manifold tracker runs on its paper's manifold unless one is named for all.
+    assert ExperimentConfig().manifold_kinds == ("bc-gplvm", "gpdm")
+    assert ExperimentConfig(manifold="bc-gplvm").manifold_kinds == ("bc-gplvm",)
+    assert ExperimentConfig(methods=("sir", "apf")).manifold_kinds == ()
+    assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf")] == [None, "bc-gplvm", "gpdm", "bc-gplvm"]
     with pytest.raises(ValueError, match="needs silhouettes and cameras"):
         check_test_sequence(train[0], "walk.npz")
     with pytest.raises(ValueError, match="needs silhouettes, which the file lacks"):
@@ -67,6 +76,8 @@ def test_experiment_end_to_end(sequences, tmp_path):
     assert (tmp_path / "error_curves.png").stat().st_size > 1000
     assert list(tmp_path.glob("walk_*.gif"))
     assert results["manifold"]["class"] == "BCGPLVM"
+    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"bc-gplvm": "BCGPLVM", "gpdm": "GPDM"}
+    assert results["dynamics"]["gpapf"]["0.class"] == "GPDMLatentDynamics"
 
 
 @pytest.mark.slow

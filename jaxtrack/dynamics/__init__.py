@@ -8,6 +8,9 @@ from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_d
 from ._base import AbstractDynamics as AbstractDynamics
 from ._base import as_scale_vector as as_scale_vector
 from ._base import gaussian_step as gaussian_step
+from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics
+from ._gpdm_latent import fit_gpdm_latent_dynamics as fit_gpdm_latent_dynamics
+from ._gpdm_latent import fit_latent_dynamics as fit_latent_dynamics
 from ._latent_random_walk import LatentRandomWalk as LatentRandomWalk
 from ._latent_random_walk import fit_latent_random_walk as fit_latent_random_walk
 from ._mrpf import MRPF_PROPOSALS as MRPF_PROPOSALS
@@ -18,3 +21,8 @@ from ._mrpf import transition_log_likelihood as transition_log_likelihood
 from ._random_walk import PoseRandomWalk as PoseRandomWalk
 from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
 from ._random_walk import make_pose_random_walk as make_pose_random_walk
+from ._velocity import RootVelocity as RootVelocity
+from ._velocity import VelocityFit as VelocityFit
+from ._velocity import fit_root_velocity as fit_root_velocity
+from ._velocity import heading_to_world as heading_to_world
+from ._velocity import world_to_heading as world_to_heading

@@ -33,9 +33,7 @@ class LatentRandomWalk(AbstractDynamics):
 
     def init(self, key, pose, num_particles):
         del key  # the pose and its latent point are the whole state
-        pose = pose.astype(self.s_latent.dtype)
-        g = self.manifold.global_dims
-        return copies(jnp.concatenate([pose[:g], self.manifold.encode(pose[None, g:])[0]]), num_particles)
+        return latent_states(self.manifold, pose.astype(self.s_latent.dtype), num_particles)
 
     def to_pose(self, states):
         g = self.manifold.global_dims
@@ -52,6 +50,12 @@ class LatentRandomWalk(AbstractDynamics):
 
     def noise_scales(self):
         return jnp.concatenate([self.s_global, self.s_latent])
+
+
+def latent_states(manifold: ManifoldPrior, pose: Float[Array, " d"], num_particles: int) -> Float[Array, "n s"]:
+    """N copies of a pose's (global entries, latent point) state."""
+    g = manifold.global_dims
+    return copies(jnp.concatenate([pose[:g], manifold.encode(pose[None, g:])[0]]), num_particles)
 
 
 def fit_latent_random_walk(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..tracking import GRADIENT_COST, PAPER_TRACKERS, Budget, get_tracker
+from ..tracking import GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,6 +31,10 @@ class ExperimentConfig:
             ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
         gradient_cost: what a likelihood gradient counts as, in evaluations (measured by
             ``benchmarks/bench_gradient.py``).
+        root_velocity: every tracker's dynamics carry a heading-frame root velocity fitted on
+            the validation motion (``jaxtrack.dynamics.RootVelocity``).
+        manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
+            for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
     """
 
     methods: tuple[str, ...] = PAPER_TRACKERS
@@ -46,6 +50,8 @@ class ExperimentConfig:
     resolution: tuple[int, int] | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
+    root_velocity: bool = False
+    manifold: str | None = None
 
     def __post_init__(self):
         if not self.methods:
@@ -63,9 +69,13 @@ class ExperimentConfig:
             raise ValueError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
             raise ValueError(f"resolution must be (width, height) in pixels, got {self.resolution}")
+        if self.manifold is not None and self.manifold not in MANIFOLD_KINDS:
+            raise ValueError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
         budget = self.tracking_budget
         for recipe in recipes:
             recipe.check_budget(budget)
+            if recipe.needs_manifold:
+                recipe.manifold_for(self.manifold)
 
     @property
     def tracking_budget(self) -> Budget:
@@ -75,3 +85,13 @@ class ExperimentConfig:
     @property
     def needs_manifold(self) -> bool:
         return any(get_tracker(m).needs_manifold for m in self.methods)
+
+    def manifold_of(self, method: str) -> str | None:
+        """The manifold kind tracker ``method`` runs on (None if it needs none)."""
+        recipe = get_tracker(method)
+        return recipe.manifold_for(self.manifold) if recipe.needs_manifold else None
+
+    @property
+    def manifold_kinds(self) -> tuple[str, ...]:
+        """The manifold kinds the experiment fits, in the order of the methods."""
+        return tuple(dict.fromkeys(k for k in map(self.manifold_of, self.methods) if k is not None))

@@ -26,6 +26,7 @@ from ..tracking import (
     check_test_sequence,
     fit_manifold,
     fit_tracker,
+    fit_velocity,
     get_tracker,
     motion_data,
     prepare_test,
@@ -89,7 +90,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         names: dict with lists "train", "validation", "test" of display names (file names).
 
     Returns:
-        a dict with "config", "manifold", "dynamics" (each tracker's fitted parameters),
+        a dict with "config", "manifolds" (per kind fitted: class, frames, objective, steps,
+        fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
+        "root_velocity" (with ``config.root_velocity``),
         "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
@@ -111,23 +114,29 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
 
     results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "sequences": {}, "estimates": {},
                "shape_calibration": {}}
-    model, starts = None, None
-    if config.needs_manifold:
+    results["manifolds"] = {}
+    motions = {None: motion_data(train_poses, validation_poses)}
+    for kind in config.manifold_kinds:
         start = time.perf_counter()
-        model, fit_info, starts = fit_manifold(train_poses, config.latent_dim, config.fit_steps, progress=progress)
+        model, fit_info, starts = fit_manifold(train_poses, config.latent_dim, config.fit_steps, kind=kind, progress=progress)
         fit_s = time.perf_counter() - start
-        say(f"manifold: BC-GPLVM on {sum(map(len, train_poses))} training frames, latent dim {config.latent_dim}, "
+        say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {config.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
-        results["manifold"] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "objective": fit_info.objective,
-                               "steps": fit_info.steps, "fit_s": fit_s}
-    motion = motion_data(train_poses, validation_poses, model, starts)
+        results["manifolds"][kind] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "objective": fit_info.objective,
+                                      "steps": fit_info.steps, "fit_s": fit_s}
+        motions[kind] = motion_data(train_poses, validation_poses, model, starts)
+    if config.manifold_kinds:
+        results["manifold"] = results["manifolds"][config.manifold_kinds[0]]
     fitted, run_roots = {}, {}
     for method in config.methods:
         fit_key, run_roots[method] = tracker_keys(config.seed, tracker_index(method))
-        fitted[method] = fit_tracker(get_tracker(method), fit_key, motion)
+        fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_of(method)])
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = config.tracking_budget
+    velocity = fit_velocity(validation_poses) if config.root_velocity else None
+    if velocity is not None:
+        results["root_velocity"] = dynamics_parameters(velocity)
     window = shared_window(test, config.frames, config.resolution)
     for seq, name in zip(test, test_names):
         scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
@@ -142,7 +151,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         groups = part_group_indices(scene.body.skeleton)
         per_method = {}
         for method in config.methods:
-            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget)
+            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity=velocity)
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
             for run in range(config.runs):
                 start = time.perf_counter()

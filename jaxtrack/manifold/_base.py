@@ -113,8 +113,13 @@ class AbstractManifold(eqx.Module):
 
         return ManifoldPrior(
             predictor=self.predictor(), back_constraint=self.back_constraint(), training_latent=self.training_latent(),
-            training_data=self.data, global_dims=global_dims,
+            training_data=self.data, global_dims=global_dims, latent_dynamics=self.latent_dynamics(),
         )
+
+    def latent_dynamics(self):
+        """The latent dynamics' predictive map (a ``GPPredictor`` from ``x_{t-1}`` to ``x_t``),
+        or None: only models with latent dynamics (``GPDM``) override this."""
+        return None
 
 
 MANIFOLD_CLASSES: dict[str, type[AbstractManifold]] = {}

@@ -292,6 +292,14 @@ class GPDM(AbstractManifold):
         """Pose predictions; the output scales W cancel in the mean (``K^-1 Y W / W``)."""
         return full_gp_predictor(self.kernel, self.latent, self.data, self.mean, self.scale)
 
+    def latent_dynamics(self) -> GPPredictor:
+        """The dynamics GP's predictive map (001 eqs. 7-9): ``x_{t-1} -> x_t``'s mean
+        ``k(x, X_in) K_X^-1 X_out`` and variance, from the within-sequence transitions."""
+        ins, outs, _ = self._transitions()
+        X = self.latent
+        q = X.shape[1]
+        return full_gp_predictor(self.dynamics, X[ins], X[outs], jnp.zeros(q, X.dtype), jnp.ones(q, X.dtype))
+
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
         return eqx.tree_at(

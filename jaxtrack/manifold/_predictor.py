@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._kernels import RBFBiasKernel
+from ._kernels import LinearRBFKernel, RBFBiasKernel
 
 
 class GPPredictor(eqx.Module):
@@ -23,14 +23,15 @@ class GPPredictor(eqx.Module):
 
     Attributes:
         support: (M, q) training latent points (or inducing points).
-        kernel: the pose kernel.
+        kernel: the covariance function (the pose kernel; a GPDM's dynamics kernel for its
+            latent dynamics).
         mean_weights: (M, D) weights so that the standardised mean is ``k(z, support) @ w``.
         variance_matrix: (M, M) ``K^-1`` (full GP) or ``Kuu^-1 - Sigma`` (sparse GP).
         mean, scale: (D,) the training data standardisation (pose units).
     """
 
     support: Float[Array, "m q"]
-    kernel: RBFBiasKernel
+    kernel: RBFBiasKernel | LinearRBFKernel
     mean_weights: Float[Array, "m d"]
     variance_matrix: Float[Array, "m m"]
     mean: Float[Array, " d"]

@@ -25,6 +25,8 @@ class ManifoldPrior(eqx.Module):
         training_latent: (N, q) the training latent points.
         training_data: (N, Da) the standardised training poses they came from.
         global_dims: G; the manifold covers pose entries G..D-1, entries 0..G-1 are global.
+        latent_dynamics: the latent dynamics' predictive map ``x_{t-1} -> (mean of x_t,
+            variance)`` (a GPDM's, 001 eqs. 7-9), or None for manifolds without dynamics.
     """
 
     predictor: GPPredictor
@@ -32,6 +34,7 @@ class ManifoldPrior(eqx.Module):
     training_latent: Float[Array, "n q"]
     training_data: Float[Array, "n a"]
     global_dims: int = eqx.field(static=True)
+    latent_dynamics: GPPredictor | None = None
 
     def __check_init__(self):
         if self.global_dims < 0:
@@ -66,6 +69,17 @@ class ManifoldPrior(eqx.Module):
     def compose(self, global_part: Float[Array, "p g"], latent: Float[Array, "p q"]) -> Float[Array, "p d"]:
         """Full poses ``[global, mu(z)]`` (001 Alg. 2's ``Omega = P(omega)``)."""
         return jnp.concatenate([global_part, self.decode_mean(latent)], axis=-1)
+
+    def predict_latent(self, latent: Float[Array, "p q"]) -> tuple[Float[Array, "p q"], Float[Array, " p"]]:
+        """Mean and variance (with the dynamics' noise) of the next latent point (001 eqs. 7-9).
+
+        Raises:
+            ValueError: if the manifold has no latent dynamics (only a GPDM has).
+        """
+        if self.latent_dynamics is None:
+            raise ValueError("this manifold has no latent dynamics: fit a GPDM (make_gpdm) for them")
+        mean, variance = self.latent_dynamics(latent)
+        return mean, variance + self.latent_dynamics.kernel.noise
 
     def encode(self, angles: Float[Array, "p a"], *, max_steps: int | None = None) -> Float[Array, "p q"]:
         """Joint angles (pose units) -> latent points: the back-constraint, or 003 eq. 5 solved

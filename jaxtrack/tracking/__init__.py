@@ -12,6 +12,7 @@ from ._pipeline import check_model_layout as check_model_layout
 from ._pipeline import check_test_sequence as check_test_sequence
 from ._pipeline import fit_manifold as fit_manifold
 from ._pipeline import fit_tracker as fit_tracker
+from ._pipeline import fit_velocity as fit_velocity
 from ._pipeline import ground_truth_joints as ground_truth_joints
 from ._pipeline import motion_data as motion_data
 from ._pipeline import prepare_test as prepare_test
@@ -20,6 +21,7 @@ from ._pipeline import track as track
 from ._pipeline import track_sequence as track_sequence
 from ._pipeline import tracker_keys as tracker_keys
 from ._registry import GRADIENT_COST as GRADIENT_COST
+from ._registry import MANIFOLD_KINDS as MANIFOLD_KINDS
 from ._registry import Budget as Budget
 from ._registry import MotionData as MotionData
 from ._registry import TrackerRecipe as TrackerRecipe

@@ -1,9 +1,11 @@
 """GPAPF (001 Alg. 2-3): annealing over (global entries, latent point) with ``layers - 1``
-layers, then the final full-pose layer (001 Alg. 3) with half the pose random walk's scales."""
+layers, then the final full-pose layer (001 Alg. 3) with half the pose random walk's scales.
+On a GPDM (its paper's manifold, the default) the latent points follow the GPDM's predictive
+dynamics; on a manifold without dynamics, a latent random walk."""
 
 import jax.numpy as jnp
 
-from ..dynamics import PoseRandomWalk, fit_latent_random_walk, fit_pose_random_walk
+from ..dynamics import PoseRandomWalk, fit_latent_dynamics, fit_pose_random_walk
 from ..filters import APF, ProjectedMean
 from ._registry import TrackerRecipe
 
@@ -12,7 +14,7 @@ FINAL_LAYER_SCALE = 0.5  # the final layer's steps, relative to the pose random 
 
 def fit(key, motion):
     del key
-    latent = fit_latent_random_walk(motion.manifold, list(motion.validation), motion.training_starts)
+    latent = fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts)
     pose = fit_pose_random_walk(list(motion.validation))
     return latent, PoseRandomWalk(FINAL_LAYER_SCALE * jnp.asarray(pose.scales))
 
@@ -24,4 +26,4 @@ def build(fitted, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("gpapf", "GPAPF", "annealed filter over (global pose, latent point) with a final full-pose layer (001)",
-                       fit, build, needs_manifold=True, annealed=True, min_layers=2)
+                       fit, build, needs_manifold=True, manifold="gpdm", annealed=True, min_layers=2)

@@ -1,13 +1,14 @@
-"""LatentPF (003 Alg. 2): Condensation over (global entries, latent point), estimate mu(E[omega])."""
+"""LatentPF (003 Alg. 2): Condensation over (global entries, latent point), estimate mu(E[omega]); the
+latent random walk of its paper, or on a GPDM the GPDM's predictive dynamics."""
 
-from ..dynamics import fit_latent_random_walk
+from ..dynamics import fit_latent_dynamics
 from ..filters import SIR, StateMean
 from ._registry import TrackerRecipe
 
 
 def fit(key, motion):
     del key
-    return fit_latent_random_walk(motion.manifold, list(motion.validation), motion.training_starts)
+    return fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts)
 
 
 def build(dynamics, likelihood, budget):

@@ -19,6 +19,6 @@ def build(dynamics, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("mrpf", "MRPF", "manifold regularised particle filter, eq. 28 sampled exactly (000)", fit_product, build,
-                       needs_manifold=True)
+                       needs_manifold=True, manifolds=("bc-gplvm",))
 PRINTED = TrackerRecipe("mrpf-alg1", "MRPF (Alg. 1)", "MRPF as 000 Alg. 1 prints it: eq. 29 proposal, eq. 30 weight",
-                        fit_printed, build, needs_manifold=True)
+                        fit_printed, build, needs_manifold=True, manifolds=("bc-gplvm",))

@@ -18,11 +18,12 @@ import numpy as np
 from .._custom_types import PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
+from ..dynamics import VelocityFit, fit_root_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import calibrate_shape, check_silhouettes, make_silhouette_likelihood
-from ..manifold import fit_model, make_bc_gplvm
-from ._registry import Budget, MotionData, TrackerRecipe
+from ..manifold import fit_model, make_bc_gplvm, make_gpdm
+from ._registry import MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
@@ -58,16 +59,19 @@ def check_test_sequence(sequence: Sequence, name: str) -> None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
 
 
-def fit_manifold(train_poses: list[np.ndarray], latent_dim: int, steps: int, *, progress: bool = False):
-    """A BC-GPLVM (000 eqs. 21-22) on the joint angles of the training pose sequences, in float64.
+def fit_manifold(train_poses: list[np.ndarray], latent_dim: int, steps: int, *, kind: str = "bc-gplvm", progress: bool = False):
+    """A manifold of the joint angles of the training pose sequences, in float64: a BC-GPLVM
+    (000 eqs. 21-22) or a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows).
 
     Returns:
         ``(model, FitInfo, training_starts)``.
     """
-    angles = np.concatenate([joint_angles(p) for p in train_poses])
+    if kind not in MANIFOLD_KINDS:
+        raise ValueError(f"manifold kind must be one of {MANIFOLD_KINDS}, got {kind!r}")
+    angles = [joint_angles(p) for p in train_poses]
     starts = tuple(int(v) for v in np.cumsum([0] + [len(p) for p in train_poses]))
     with jax.enable_x64(True):
-        model = make_bc_gplvm(angles, latent_dim)
+        model = make_bc_gplvm(np.concatenate(angles), latent_dim) if kind == "bc-gplvm" else make_gpdm(angles, latent_dim)
         fitted, info = fit_model(model, max_steps=steps, progress=progress)
     return fitted, info, starts
 
@@ -95,14 +99,23 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
         return recipe.fit(key, motion)
 
 
-def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None):
+def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
+                  velocity: VelocityFit | None = None):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
+
+    With ``velocity`` (``jaxtrack.dynamics.fit_root_velocity``) the filter's dynamics carry a
+    heading-frame root velocity (``RootVelocity``): any tracker whose filter has a ``dynamics``
+    field (``SIR``, ``APF``) can move with the body instead of diffusing behind it.
 
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``): its ``refine`` field
     is set, so any tracker whose filter has one (``SIR``, ``APF``) can be refined."""
     recipe.check_budget(budget)
     tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    if velocity is not None:
+        if not hasattr(tracker, "dynamics"):
+            raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'dynamics' field: it cannot carry a velocity")
+        tracker = eqx.tree_at(lambda f: f.dynamics, tracker, cast_floating(velocity, TRACKING_DTYPE).wrap(tracker.dynamics))
     if not budget.refine_steps:
         return tracker
     refinement = LangevinRefinement(budget.refine_steps) if refinement is None else refinement
@@ -111,6 +124,13 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     if not hasattr(tracker, "refine"):
         raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'refine' field: it cannot be refined")
     return eqx.tree_at(lambda f: f.refine, tracker, refinement, is_leaf=lambda x: x is None)
+
+
+def fit_velocity(validation_poses) -> VelocityFit:
+    """The root velocity of every tracker (``build_tracker(..., velocity=)``), fitted in
+    float64 on the validation poses."""
+    with jax.enable_x64(True):
+        return fit_root_velocity(list(validation_poses))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -197,7 +217,7 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0):
+                   calibrate: bool = False, refine_steps: int = 0, root_velocity: bool = False):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
@@ -212,5 +232,6 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate)
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
-    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_)
+    velocity = fit_velocity(motion.validation) if root_velocity else None
+    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_, velocity=velocity)
     return track(tracker, jax.random.fold_in(run_root, 0), scene)

@@ -20,6 +20,7 @@ from ..manifold import ManifoldPrior
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
 # 2 CPU cores (benchmarks/bench_gradient.py).
 GRADIENT_COST = 50.0
+MANIFOLD_KINDS = ("bc-gplvm", "gpdm")  # what tracking.fit_manifold fits: 000's BC-GPLVM, 001's GPDM
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +103,9 @@ class TrackerRecipe:
             ``budget.particles`` particles, annealed ones ``budget.per_layer`` per layer (both
             leave room for gradient-refined moves, which ``build_tracker`` adds).
         needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
+        manifold: the manifold kind the tracker's paper uses ("bc-gplvm" or "gpdm"), fitted for
+            it unless the experiment names one for every tracker.
+        manifolds: the manifold kinds the tracker can run on.
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
     """
@@ -112,6 +116,8 @@ class TrackerRecipe:
     fit: Callable[[Any, MotionData], Any]
     build: Callable[[Any, Any, Budget], Any]
     needs_manifold: bool = False
+    manifold: str = "bc-gplvm"
+    manifolds: tuple[str, ...] = MANIFOLD_KINDS
     annealed: bool = False
     min_layers: int = 1
 
@@ -120,6 +126,17 @@ class TrackerRecipe:
             raise ValueError(f"a tracker name must be a non-empty word, got {self.name!r}")
         if not (callable(self.fit) and callable(self.build)):
             raise TypeError(f"tracker {self.name!r}: fit and build must be callables")
+        if self.manifold not in self.manifolds or not set(self.manifolds) <= set(MANIFOLD_KINDS):
+            raise ValueError(f"tracker {self.name!r}: manifold {self.manifold!r} and manifolds {self.manifolds} must be "
+                             f"among {MANIFOLD_KINDS}, the first among the second")
+
+    def manifold_for(self, requested: str | None) -> str:
+        """The manifold kind this tracker runs on when the experiment asks for ``requested``
+        (None: the tracker's own); raises ``ValueError`` if it cannot run on it."""
+        kind = self.manifold if requested is None else requested
+        if kind not in self.manifolds:
+            raise ValueError(f"{self.label} cannot run on a {kind} manifold (it runs on: {', '.join(self.manifolds)})")
+        return kind
 
     def check_budget(self, budget: Budget) -> None:
         """Raise ``ValueError`` if this tracker cannot spend ``budget``."""

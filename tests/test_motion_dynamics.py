@@ -1,0 +1,208 @@
+"""The dynamics that move: the heading-frame root velocity (any tracker) and the GPDM's latent
+dynamics (GPAPF on its paper's manifold), against references with known answers."""
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.data import generate_motion
+from jaxtrack.dynamics import (
+    GPDMLatentDynamics,
+    LatentRandomWalk,
+    PoseRandomWalk,
+    RootVelocity,
+    fit_gpdm_latent_dynamics,
+    fit_latent_dynamics,
+    fit_root_velocity,
+    heading_to_world,
+    world_to_heading,
+)
+from jaxtrack.filters import APF, SIR, LangevinRefinement, StateMean, run_filter
+from jaxtrack.manifold import make_bc_gplvm, make_gpdm, make_manifold_prior
+
+
+@pytest.fixture(scope="module")
+def walk():
+    motion = generate_motion("walk", "S1", num_frames=60, fps=30.0, key=jax.random.key(5), dtype=jnp.float64)
+    return np.asarray(motion.pose)
+
+
+@pytest.fixture(scope="module")
+def gpdm_prior(walk):
+    model = make_gpdm([walk[:25, 6:], walk[25:45, 6:]], 2)  # PCA-initialised, unfitted: the maps are what is tested
+    return make_manifold_prior(model, walk.shape[1])
+
+
+def circle(frames, speed, radius, bounce=0.0):
+    """Poses (frames, 8) running anticlockwise round a circle, facing along it."""
+    angle = speed * np.arange(frames) / radius
+    heading = angle + np.pi / 2
+    pose = np.zeros((frames, 8))
+    pose[:, 0], pose[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
+    pose[:, 2] = 1.0 + bounce * np.sin(np.arange(frames))
+    pose[:, 3] = heading
+    return pose
+
+
+def test_heading_frame_round_trip_and_fit_of_a_circle(getkey):
+    velocity = np.asarray(jax.random.normal(getkey(), (50, 6)))
+    yaw = np.asarray(jax.random.uniform(getkey(), (50,), minval=-4, maxval=4))
+    np.testing.assert_allclose(world_to_heading(np.asarray(heading_to_world(jnp.asarray(velocity), jnp.asarray(yaw))), yaw), velocity,
+                               atol=1e-12)
+    # Running round a circle is a constant heading-frame velocity: forward speed and turn rate.
+    poses = circle(200, speed=0.05, radius=1.5)
+    fit = fit_root_velocity(poses, floor=1e-9)
+    np.testing.assert_allclose(np.asarray(fit.initial_speed)[[0, 3]], [0.05, 0.05 / 1.5], rtol=1e-3)
+    assert np.all(np.asarray(fit.acceleration)[[0, 1, 3]] < 1e-6)  # no change of velocity
+    with pytest.raises(ValueError, match="at least 3 frames"):
+        fit_root_velocity(poses[:2])
+    with pytest.raises(ValueError, match="global entries"):
+        fit_root_velocity(poses[:, :4])
+
+
+def test_root_velocity_moves_particles_round_the_circle(getkey):
+    poses = jnp.asarray(circle(30, speed=0.05, radius=1.5))
+    still = PoseRandomWalk(jnp.zeros(8))
+    dynamics = RootVelocity(still, jnp.zeros(6), jnp.zeros(6))
+    state = jnp.concatenate([poses[0], jnp.array([0.05, 0.0, 0.0, 0.05 / 1.5, 0.0, 0.0])])[None]
+    for _ in range(1, 30):
+        state, correction = dynamics.propose(getkey(), state)
+        np.testing.assert_array_equal(correction, [0.0])
+    # The midpoint of each chord is missed by the first-order step; a turn of 1.9 deg/frame
+    # drifts by under a millimetre a frame.
+    assert np.abs(np.asarray(dynamics.to_pose(state)[0] - poses[29]))[:2].max() < 0.03
+    np.testing.assert_allclose(dynamics.to_pose(state)[0, 3], poses[29, 3], atol=1e-9)
+    # Annealing moves leave the velocity alone; the initial velocities have the fitted spread.
+    noisy = RootVelocity(PoseRandomWalk(jnp.full(8, 0.1)), jnp.full(6, 0.01), jnp.arange(1.0, 7.0) * 0.01)
+    start = noisy.init(getkey(), poses[0], 20000)
+    np.testing.assert_array_equal(start[:, :8], np.tile(poses[0], (20000, 1)))
+    np.testing.assert_allclose(np.asarray(start[:, 8:]).std(0), np.arange(1.0, 7.0) * 0.01, rtol=0.03)
+    moved = noisy.perturb(getkey(), start, 0.5)
+    np.testing.assert_array_equal(moved[:, 8:], start[:, 8:])
+    np.testing.assert_allclose(np.asarray(moved[:, :8] - start[:, :8]).std(0), 0.05, rtol=0.03)
+    with pytest.raises(ValueError, match="already carries"):
+        RootVelocity(noisy, jnp.zeros(6), jnp.zeros(6))
+
+
+def test_root_velocity_log_transition_is_the_proposal_density(getkey):
+    """The velocity's change and the inner step are independent Gaussians: ``log_transition``
+    matches the density of what ``propose`` drew, computed by hand."""
+    inner = PoseRandomWalk(jnp.full(8, 0.1))
+    dynamics = RootVelocity(inner, jnp.full(6, 0.02), jnp.full(6, 0.05))
+    previous = dynamics.init(getkey(), jnp.asarray(circle(1, 0.05, 1.5)[0]), 7)
+    drawn = dynamics.propose(getkey(), previous)[0]
+    velocity, velocity_before = drawn[:, 8:], previous[:, 8:]
+    shifted = previous[:, :8].at[:, :6].add(heading_to_world(velocity, previous[:, 3]))
+    expected = -0.5 * jnp.sum(((drawn[:, :8] - shifted) / 0.1) ** 2, 1) - 0.5 * jnp.sum(((velocity - velocity_before) / 0.02) ** 2, 1)
+    np.testing.assert_allclose(dynamics.log_transition(previous, drawn), expected, rtol=1e-12)
+    np.testing.assert_allclose(dynamics.noise_scales(), np.r_[np.full(8, 0.1), np.full(6, 0.02)])
+
+
+def test_gpdm_latent_dynamics_predict_as_the_dynamics_gp(gpdm_prior):
+    """The predictive map equals the GP formula written out in NumPy (001 eqs. 7-9)."""
+    dyn = gpdm_prior.latent_dynamics
+    X = np.asarray(gpdm_prior.training_latent)
+    ins = np.r_[0:24, 25:44]
+    outs = ins + 1
+    kernel = dyn.kernel
+    a1, a2, a3 = (float(jnp.exp(v)) for v in (kernel.log_a1, kernel.log_a2, kernel.log_a3))
+
+    def k(a, b):
+        return a1 * np.exp(-0.5 * a2 * ((a[:, None] - b[None]) ** 2).sum(-1)) + a3 * a @ b.T
+
+    K = k(X[ins], X[ins]) + float(kernel.noise) * np.eye(len(ins))
+    query = X[[3, 30]] + 0.1
+    kq = k(query, X[ins])
+    mean, variance = gpdm_prior.predict_latent(jnp.asarray(query))
+    np.testing.assert_allclose(mean, kq @ np.linalg.solve(K, X[outs]), rtol=1e-6, atol=1e-9)
+    expected = np.diag(k(query, query)) - np.sum(kq * np.linalg.solve(K, kq.T).T, 1) + float(kernel.noise)
+    np.testing.assert_allclose(variance, expected, rtol=1e-6)
+    no_dynamics = make_manifold_prior(make_bc_gplvm(np.asarray(gpdm_prior.training_poses()), 2), 32)
+    with pytest.raises(ValueError, match="no latent dynamics"):
+        no_dynamics.predict_latent(jnp.zeros((1, 2)))
+    with pytest.raises(ValueError, match="no latent dynamics"):
+        GPDMLatentDynamics(no_dynamics, jnp.full(6, 0.01))
+    # fit_latent_dynamics picks the manifold's own: GPDM dynamics, else the random walk.
+    walk = np.asarray(gpdm_prior.training_poses())
+    poses = np.concatenate([np.zeros((len(walk), 6)), walk], 1)
+    assert isinstance(fit_latent_dynamics(gpdm_prior, poses), GPDMLatentDynamics)
+    assert isinstance(fit_latent_dynamics(no_dynamics, poses), LatentRandomWalk)
+
+
+def test_gpdm_particles_follow_the_predictive_distribution(gpdm_prior, walk, getkey):
+    dynamics = fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
+    start = dynamics.init(getkey(), jnp.asarray(walk[10]), 40000)
+    drawn, correction = dynamics.propose(getkey(), start)
+    np.testing.assert_array_equal(correction, np.zeros(40000))
+    mean, variance = gpdm_prior.predict_latent(start[:1, 6:])
+    np.testing.assert_allclose(np.asarray(drawn[:, 6:]).mean(0), mean[0], atol=4 * float(jnp.sqrt(variance[0])) / 200)
+    np.testing.assert_allclose(np.asarray(drawn[:, 6:]).std(0), float(jnp.sqrt(variance[0])), rtol=0.02)
+    np.testing.assert_allclose(np.asarray(drawn[:, :6]).std(0), dynamics.s_global, rtol=0.02)
+
+
+def test_gpdm_gpapf_with_one_layer_and_beta_one_is_latent_sir(gpdm_prior, walk, getkey):
+    """An annealed filter with one layer at beta = 1 is the SIR filter of the same dynamics:
+    with the same key, the same particles, weights and estimates."""
+    dynamics = fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
+
+    def likelihood(poses, target):
+        return -0.5 * jnp.sum(((poses - target) / 0.1) ** 2, axis=1)
+
+    from jaxtrack.likelihood import as_likelihood
+
+    lik = as_likelihood(likelihood)
+    apf = APF(dynamics, lik, 64, num_layers=1, fixed_betas=(1.0,), estimator=StateMean())
+    sir = SIR(dynamics, lik, 64, estimator=StateMean())
+    key = getkey()
+    observations = jnp.asarray(walk[11:16])
+    final_apf, info_apf = run_filter(apf, key, jnp.asarray(walk[10]), observations)
+    final_sir, info_sir = run_filter(sir, key, jnp.asarray(walk[10]), observations)
+    np.testing.assert_allclose(final_apf.particles, final_sir.particles, rtol=1e-12)
+    np.testing.assert_allclose(info_apf.estimate, info_sir.estimate, rtol=1e-12)
+    np.testing.assert_allclose(info_apf.log_evidence, info_sir.log_evidence, rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_new_dynamics_same_key_same_result_jitted_or_not(gpdm_prior, walk, getkey):
+    from jaxtrack.likelihood import as_likelihood
+
+    lik = as_likelihood(lambda poses, target: -0.5 * jnp.sum(((poses - target) / 0.1) ** 2, axis=1))
+    gpdm = fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
+    velocity = fit_root_velocity(walk[45:])
+    trackers = [
+        SIR(velocity.wrap(PoseRandomWalk(jnp.full(32, 0.02))), lik, 30),
+        APF(velocity.wrap(gpdm), lik, 20, num_layers=2, estimator=StateMean()),
+        SIR(gpdm, lik, 30, refine=LangevinRefinement(1)),
+    ]
+    key = getkey()
+    observations = jnp.asarray(walk[11:13])
+    for tracker in trackers:
+        jitted = run_filter(tracker, key, jnp.asarray(walk[10]), observations)[1]
+        with jax.disable_jit():
+            eager = run_filter(tracker, key, jnp.asarray(walk[10]), observations)[1]
+        np.testing.assert_allclose(jitted.estimate, eager.estimate, rtol=1e-7, atol=1e-9)
+        assert np.all(np.isfinite(np.asarray(jitted.estimate)))
+
+
+@pytest.mark.slow
+def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey):
+    """MALA moves targeting ``log_transition`` alone keep a sample of ``propose`` a sample of it."""
+    cases = [
+        RootVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
+        fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
+    ]
+    n = 20000
+    for dynamics in cases:
+        start = dynamics.init(getkey(), jnp.asarray(walk[40]), n)
+        previous = dynamics.propose(getkey(), start)[0]
+        drawn = dynamics.propose(getkey(), previous)[0]
+        target = functools.partial(dynamics.log_transition, previous)
+        moved, info = LangevinRefinement(num_steps=4)(getkey(), drawn, target, dynamics.noise_scales())
+        a, b = np.asarray(drawn - previous), np.asarray(moved - previous)
+        scale = a.std(0) + 1e-12
+        assert np.abs((a.mean(0) - b.mean(0)) / scale).max() < 0.06, type(dynamics).__name__
+        np.testing.assert_allclose(b.std(0), a.std(0), rtol=0.06, atol=1e-9, err_msg=type(dynamics).__name__)
+        assert float(np.asarray(info.acceptance).mean()) > 0.3
