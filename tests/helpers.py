@@ -57,3 +57,20 @@ def small_experiment_sequences():
 
     train = [motion("walk", 30, 0), motion("jog", 30, 1)]
     return train, [motion("walk", 20, 7)], [small_scene()[2]]
+
+
+def check_refinement_keeps_transition(dynamics, pose, getkey, *, particles: int = 20000):
+    """``log_transition`` is the density ``propose`` draws from: MALA moves targeting it alone
+    keep a sample of the transition a sample of it (means within 0.06 sd, sds within 6 %)."""
+    from jaxtrack.filters import LangevinRefinement
+
+    start = dynamics.init(getkey(), pose, particles)
+    previous = dynamics.propose(getkey(), start)[0]  # distinct previous states
+    drawn = dynamics.propose(getkey(), previous)[0]
+    target = functools.partial(dynamics.log_transition, previous)
+    moved, info = LangevinRefinement(num_steps=4)(getkey(), drawn, target, dynamics.noise_scales())
+    a, b = np.asarray(drawn - previous), np.asarray(moved - previous)
+    scale = a.std(0) + 1e-12
+    assert np.abs((a.mean(0) - b.mean(0)) / scale).max() < 0.06, type(dynamics).__name__
+    np.testing.assert_allclose(b.std(0), a.std(0), rtol=0.06, atol=1e-9, err_msg=type(dynamics).__name__)
+    assert float(np.asarray(info.acceptance).mean()) > 0.3

@@ -1,7 +1,6 @@
 """Particle filter core: resamplers, weights, and each tracker against a reference with a known
 answer (Kalman filter, SIR)."""
 
-import functools
 
 import equinox as eqx
 import jax
@@ -23,6 +22,8 @@ from jaxtrack.filters import (
     survival_rate,
 )
 from jaxtrack.manifold import make_manifold_prior
+
+from helpers import check_refinement_keeps_transition
 
 # ----------------------------------------------------------------------------- resampling
 
@@ -527,7 +528,6 @@ def test_refinement_moves_leave_each_transition_invariant(walk_prior, getkey):
     """``log_transition`` is the density ``propose`` draws from: MALA moves targeting it alone
     keep a sample of the transition a sample of it (for every dynamics that can be refined)."""
     from jaxtrack.dynamics import AutoregressivePoseDynamics, LatentRandomWalk, ManifoldRegularisedTransition, PoseRandomWalk
-    from jaxtrack.filters import LangevinRefinement
 
     prior, poses = walk_prior
     d = 32
@@ -537,18 +537,8 @@ def test_refinement_moves_leave_each_transition_invariant(walk_prior, getkey):
         LatentRandomWalk(prior, jnp.full(6, 0.02), jnp.full(2, 0.2)),
         ManifoldRegularisedTransition(prior, jnp.full(d, 0.05), jnp.full(2, 0.1), jnp.full(26, 0.03)),
     ]
-    n = 20000
     for dynamics in cases:
-        start = dynamics.init(getkey(), jnp.asarray(poses[40]), n)
-        previous = dynamics.propose(getkey(), start)[0]  # distinct previous states
-        drawn = dynamics.propose(getkey(), previous)[0]
-        target = functools.partial(dynamics.log_transition, previous)
-        moved, info = LangevinRefinement(num_steps=4)(getkey(), drawn, target, dynamics.noise_scales())
-        a, b = np.asarray(drawn - previous), np.asarray(moved - previous)
-        scale = a.std(0) + 1e-12
-        assert np.abs((a.mean(0) - b.mean(0)) / scale).max() < 0.06, type(dynamics).__name__
-        np.testing.assert_allclose(b.std(0), a.std(0), rtol=0.06, atol=1e-9, err_msg=type(dynamics).__name__)
-        assert float(np.asarray(info.acceptance).mean()) > 0.3
+        check_refinement_keeps_transition(dynamics, jnp.asarray(poses[40]), getkey)
 
 
 def test_refinement_with_an_impossible_likelihood_leaks_no_nans(getkey):

@@ -1,7 +1,6 @@
 """The dynamics that move: the heading-frame root velocity (any tracker) and the GPDM's latent
 dynamics (GPAPF on its paper's manifold), against references with known answers."""
 
-import functools
 
 import jax
 import jax.numpy as jnp
@@ -22,6 +21,8 @@ from jaxtrack.dynamics import (
 )
 from jaxtrack.filters import APF, SIR, LangevinRefinement, StateMean, run_filter
 from jaxtrack.manifold import make_bc_gplvm, make_gpdm, make_manifold_prior
+
+from helpers import check_refinement_keeps_transition
 
 
 @pytest.fixture(scope="module")
@@ -194,15 +195,5 @@ def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey
         RootVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
         fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
     ]
-    n = 20000
     for dynamics in cases:
-        start = dynamics.init(getkey(), jnp.asarray(walk[40]), n)
-        previous = dynamics.propose(getkey(), start)[0]
-        drawn = dynamics.propose(getkey(), previous)[0]
-        target = functools.partial(dynamics.log_transition, previous)
-        moved, info = LangevinRefinement(num_steps=4)(getkey(), drawn, target, dynamics.noise_scales())
-        a, b = np.asarray(drawn - previous), np.asarray(moved - previous)
-        scale = a.std(0) + 1e-12
-        assert np.abs((a.mean(0) - b.mean(0)) / scale).max() < 0.06, type(dynamics).__name__
-        np.testing.assert_allclose(b.std(0), a.std(0), rtol=0.06, atol=1e-9, err_msg=type(dynamics).__name__)
-        assert float(np.asarray(info.acceptance).mean()) > 0.3
+        check_refinement_keeps_transition(dynamics, jnp.asarray(walk[40]), getkey)
