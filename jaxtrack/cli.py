@@ -140,7 +140,7 @@ def _experiment(args) -> int:
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
         calibrate_shape=args.calibrate_shape, resolution=args.resolution, refine_steps=args.refine_steps,
-        root_velocity=args.root_velocity, manifold=args.manifold,
+        velocity=args.velocity, manifold=args.manifold,
     )
     train, train_names = _load_sequences(args.train)
     validation, validation_names = _load_sequences(args.validation)
@@ -171,7 +171,7 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        refine_steps=args.refine_steps, root_velocity=args.root_velocity,
+        refine_steps=args.refine_steps, velocity=args.velocity,
     )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
@@ -182,7 +182,7 @@ def _track(args) -> int:
 
 
 _SCALE = 100.0
-_VELOCITY = False  # ExperimentConfig.root_velocity's default
+_VELOCITY = True  # ExperimentConfig.velocity's default
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -310,9 +310,10 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--refine-steps", type=int, default=0,
                             help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    experiment.add_argument("--root-velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
-                            help="give every tracker's dynamics a heading-frame root velocity fitted on the validation motion "
-                                 "(default: %(default)s)")
+    experiment.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
+                            help="give every tracker's dynamics a Kalman-tracked velocity of the root (and of the pose or latent "
+                                 "point where the dynamics support it) fitted on the validation motion; --no-velocity for the "
+                                 "papers' zero-mean walks (default: %(default)s)")
     experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
                             help="the manifold of every manifold tracker (default: each tracker's paper's: "
                                  f"{_manifold_defaults()})")
@@ -335,8 +336,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--refine-steps", type=int, default=0,
                        help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    track.add_argument("--root-velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
-                       help="give the tracker's dynamics a heading-frame root velocity (default: %(default)s)")
+    track.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
+                       help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion "
+                            "(default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 

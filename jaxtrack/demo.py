@@ -191,13 +191,13 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
 
 
 def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40, budget: int = 300, runs: int = 2,
-             methods=None, root_velocity: bool = False, manifold: str | None = None, verbose: bool = True):
+             methods=None, velocity: bool = True, manifold: str | None = None, verbose: bool = True):
     """The small experiment (module docstring); returns ``(results, paths)``.
 
     Args:
         methods: registered tracker names (default: the papers' five).
-        root_velocity, manifold: as ``ExperimentConfig``'s (a heading-frame root velocity for
-            every tracker; the manifold of every manifold tracker, None for each one's own).
+        velocity, manifold: as ``ExperimentConfig``'s (a Kalman-tracked velocity for every
+            tracker; the manifold of every manifold tracker, None for each one's own).
     """
     from .experiment import ExperimentConfig, results_table, run_experiment, write_outputs
     from .tracking import PAPER_TRACKERS
@@ -214,7 +214,7 @@ def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40,
         save_sequence(path, seq)
     test = [load_sequence(os.path.join(out_dir, n.replace(" ", "_") + ".npz")) for n in names["test"]]
     config = ExperimentConfig(methods=tuple(methods or PAPER_TRACKERS), budget=budget, runs=runs, fit_steps=100, seed=seed,
-                              root_velocity=root_velocity, manifold=manifold)
+                              velocity=velocity, manifold=manifold)
     fitted = " and ".join(k.upper() for k in config.manifold_kinds) or "no manifold"
     say(f"[2/4] fitting {fitted} and each tracker's dynamics; then {', '.join(config.methods)} with "
         f"{budget} likelihood evaluations per frame, {runs} runs each")

@@ -1,4 +1,4 @@
-"""The dynamics that move: the heading-frame root velocity (any tracker) and the GPDM's latent
+"""The dynamics that move: the Kalman-tracked velocity (any tracker) and the GPDM's latent
 dynamics (GPAPF on its paper's manifold), against references with known answers."""
 
 
@@ -12,10 +12,11 @@ from jaxtrack.dynamics import (
     GPDMLatentDynamics,
     LatentRandomWalk,
     PoseRandomWalk,
-    RootVelocity,
+    StateVelocity,
     fit_gpdm_latent_dynamics,
     fit_latent_dynamics,
     fit_root_velocity,
+    fit_state_velocity,
     heading_to_world,
     world_to_heading,
 )
@@ -64,11 +65,20 @@ def test_heading_frame_round_trip_and_fit_of_a_circle(getkey):
         fit_root_velocity(poses[:, :4])
 
 
-def test_root_velocity_moves_particles_round_the_circle(getkey):
+def velocity_entries(dynamics, states):
+    """(inner, v, mean, var, anchor, seen) of ``StateVelocity`` states."""
+    k, inner = dynamics.size, states.shape[1] - 4 * dynamics.size - 1
+    cuts = np.cumsum([inner, k, k, k, k])
+    return np.split(np.asarray(states), cuts, axis=1)
+
+
+def test_velocity_moves_particles_round_the_circle(getkey):
+    """A known velocity (zero spread, no noise) carries a state round the circle."""
     poses = jnp.asarray(circle(30, speed=0.05, radius=1.5))
-    still = PoseRandomWalk(jnp.zeros(8))
-    dynamics = RootVelocity(still, jnp.zeros(6), jnp.zeros(6))
-    state = jnp.concatenate([poses[0], jnp.array([0.05, 0.0, 0.0, 0.05 / 1.5, 0.0, 0.0])])[None]
+    dynamics = StateVelocity(PoseRandomWalk(jnp.zeros(8)), jnp.zeros(6), jnp.zeros(6))
+    state = dynamics.init(getkey(), poses[0], 1)
+    mean_at = 8 + 6
+    state = state.at[0, mean_at : mean_at + 6].set(jnp.array([0.05, 0.0, 0.0, 0.05 / 1.5, 0.0, 0.0]))
     for _ in range(1, 30):
         state, correction = dynamics.propose(getkey(), state)
         np.testing.assert_array_equal(correction, [0.0])
@@ -76,30 +86,76 @@ def test_root_velocity_moves_particles_round_the_circle(getkey):
     # drifts by under a millimetre a frame.
     assert np.abs(np.asarray(dynamics.to_pose(state)[0] - poses[29]))[:2].max() < 0.03
     np.testing.assert_allclose(dynamics.to_pose(state)[0, 3], poses[29, 3], atol=1e-9)
-    # Annealing moves leave the velocity alone; the initial velocities have the fitted spread.
-    noisy = RootVelocity(PoseRandomWalk(jnp.full(8, 0.1)), jnp.full(6, 0.01), jnp.arange(1.0, 7.0) * 0.01)
-    start = noisy.init(getkey(), poses[0], 20000)
-    np.testing.assert_array_equal(start[:, :8], np.tile(poses[0], (20000, 1)))
-    np.testing.assert_allclose(np.asarray(start[:, 8:]).std(0), np.arange(1.0, 7.0) * 0.01, rtol=0.03)
-    moved = noisy.perturb(getkey(), start, 0.5)
-    np.testing.assert_array_equal(moved[:, 8:], start[:, 8:])
-    np.testing.assert_allclose(np.asarray(moved[:, :8] - start[:, :8]).std(0), 0.05, rtol=0.03)
     with pytest.raises(ValueError, match="already carries"):
-        RootVelocity(noisy, jnp.zeros(6), jnp.zeros(6))
+        StateVelocity(dynamics, jnp.zeros(6), jnp.zeros(6))
+    with pytest.raises(ValueError, match="at least the 6 global entries"):
+        StateVelocity(PoseRandomWalk(jnp.zeros(8)), jnp.zeros(4), jnp.zeros(4))
 
 
-def test_root_velocity_log_transition_is_the_proposal_density(getkey):
-    """The velocity's change and the inner step are independent Gaussians: ``log_transition``
+def test_velocity_belief_is_a_kalman_filter_of_the_steps(getkey):
+    """Each particle's velocity belief after a path of chosen positions equals a scalar Kalman
+    filter, written out in NumPy, of the path's heading-frame steps; the draws have its spread
+    and annealing moves leave it alone."""
+    a, s0, q = np.array([0.01, 0.02, 0.005, 0.03, 0.01, 0.01]), np.full(6, 0.05), np.array([0.1, 0.1, 0.05, 0.2, 0.1, 0.1])
+    dynamics = StateVelocity(PoseRandomWalk(jnp.full(8, 0.3)), jnp.asarray(a), jnp.asarray(s0), jnp.asarray(q))
+    path = circle(12, speed=0.04, radius=1.2, bounce=0.02) + 0.01 * np.asarray(jax.random.normal(getkey(), (12, 8)))
+    state = dynamics.init(getkey(), jnp.asarray(path[0]), 3)
+    mean, var = np.zeros(6), s0**2  # the reference: nothing seen before the first step
+    for t in range(1, 12):
+        state, _ = dynamics.propose(getkey(), state)
+        if t > 1:  # the step into frame t-1 is observed now
+            step = path[t - 1, :6] - path[t - 2, :6]
+            yaw = path[t - 2, 3]
+            seen = np.r_[np.cos(yaw) * step[0] + np.sin(yaw) * step[1], -np.sin(yaw) * step[0] + np.cos(yaw) * step[1], step[2:]]
+            gain = var / (var + q**2)
+            mean, var = mean + gain * (seen - mean), (1 - gain) * var + a**2
+        _, _, got_mean, got_var, anchor, flag = velocity_entries(dynamics, state)
+        np.testing.assert_allclose(got_mean, np.tile(mean, (3, 1)), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(got_var, np.tile(var, (3, 1)), rtol=1e-10)
+        np.testing.assert_allclose(anchor, np.tile(path[t - 1, :6], (3, 1)))
+        assert np.all(flag == 1.0)
+        state = state.at[:, :8].set(jnp.asarray(path[t]))  # the position the likelihood chose
+    # The belief never collapses: 20000 copies of one resampled particle draw velocities with
+    # the predictive spread, and annealing moves change only the pose.
+    copies = jnp.tile(state[:1], (20000, 1))
+    drawn = dynamics.propose(getkey(), copies)[0]
+    _, v, _, var_next, _, _ = velocity_entries(dynamics, drawn)
+    np.testing.assert_allclose(v.std(0), np.sqrt(var_next[0]), rtol=0.03)
+    moved = dynamics.perturb(getkey(), drawn, 0.5)
+    np.testing.assert_array_equal(moved[:, 8:], drawn[:, 8:])
+    np.testing.assert_allclose(np.asarray(moved[:, :8] - drawn[:, :8]).std(0), 0.15, rtol=0.03)
+
+
+def test_velocity_log_transition_is_the_proposal_density(getkey):
+    """The drawn velocity and the inner step are independent Gaussians: ``log_transition``
     matches the density of what ``propose`` drew, computed by hand."""
-    inner = PoseRandomWalk(jnp.full(8, 0.1))
-    dynamics = RootVelocity(inner, jnp.full(6, 0.02), jnp.full(6, 0.05))
+    dynamics = StateVelocity(PoseRandomWalk(jnp.full(8, 0.1)), jnp.full(6, 0.02), jnp.full(6, 0.05))
+    np.testing.assert_allclose(dynamics.displacement_noise, np.full(6, 0.1))  # the inner walk's, by default
     previous = dynamics.init(getkey(), jnp.asarray(circle(1, 0.05, 1.5)[0]), 7)
+    previous = dynamics.propose(getkey(), previous)[0].at[:, :8].add(0.03)  # one step seen
     drawn = dynamics.propose(getkey(), previous)[0]
-    velocity, velocity_before = drawn[:, 8:], previous[:, 8:]
-    shifted = previous[:, :8].at[:, :6].add(heading_to_world(velocity, previous[:, 3]))
-    expected = -0.5 * jnp.sum(((drawn[:, :8] - shifted) / 0.1) ** 2, 1) - 0.5 * jnp.sum(((velocity - velocity_before) / 0.02) ** 2, 1)
+    v, mean, var = (velocity_entries(dynamics, drawn)[i] for i in (1, 2, 3))
+    shifted = previous[:, :8].at[:, :6].add(heading_to_world(jnp.asarray(v), previous[:, 3]))
+    expected = -0.5 * jnp.sum(((drawn[:, :8] - shifted) / 0.1) ** 2, 1) - 0.5 * np.sum((v - mean) ** 2 / var + np.log(var), 1)
     np.testing.assert_allclose(dynamics.log_transition(previous, drawn), expected, rtol=1e-12)
-    np.testing.assert_allclose(dynamics.noise_scales(), np.r_[np.full(8, 0.1), np.full(6, 0.02)])
+    scales = np.asarray(dynamics.noise_scales())
+    assert scales.shape == drawn.shape[1:] and np.all(scales[8:14] > 0) and np.all(scales[14:] == 0)
+
+
+def test_each_dynamics_says_which_entries_move(gpdm_prior, walk):
+    """``fit_state_velocity`` fits the entries a dynamics supports: the root for a pose random
+    walk and the GPDM (whose latent dynamics are its own), root and latent point for a latent
+    random walk."""
+    from jaxtrack.dynamics import fit_latent_random_walk
+
+    assert fit_state_velocity(PoseRandomWalk(jnp.full(32, 0.1)), walk).acceleration.shape == (6,)
+    assert fit_state_velocity(fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]), walk).acceleration.shape == (6,)
+    latent_walk = fit_latent_random_walk(gpdm_prior, walk[45:])
+    fit = fit_state_velocity(latent_walk, walk)
+    assert fit.acceleration.shape == (8,)
+    latent = np.asarray(gpdm_prior.encode(jnp.asarray(walk[:, 6:])))
+    steps = np.diff(latent, axis=0)
+    np.testing.assert_allclose(fit.initial_speed[6:], np.sqrt(np.mean(steps**2, 0)), rtol=1e-9)
 
 
 def test_gpdm_latent_dynamics_predict_as_the_dynamics_gp(gpdm_prior):
@@ -192,7 +248,7 @@ def test_new_dynamics_same_key_same_result_jitted_or_not(gpdm_prior, walk, getke
 def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey):
     """MALA moves targeting ``log_transition`` alone keep a sample of ``propose`` a sample of it."""
     cases = [
-        RootVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
+        StateVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
         fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
     ]
     for dynamics in cases:

@@ -169,22 +169,24 @@ def test_build_casts_once_to_float32_and_clips(sequences):
         build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3))
 
 
-def test_build_gives_any_tracker_a_root_velocity():
-    """``build_tracker(..., velocity=)`` wraps the filter's dynamics (cast to float32 with it);
-    the annealed trackers' final layer keeps its pose random walk."""
-    from jaxtrack.dynamics import PoseRandomWalk, RootVelocity, VelocityFit
+def test_build_gives_any_tracker_a_velocity():
+    """``build_tracker(..., velocity_from=)`` wraps the filter's dynamics in a velocity fitted on
+    the validation poses (in float64, cast to float32 with the rest); the annealed trackers'
+    final layer keeps its pose random walk."""
+    from jaxtrack.dynamics import PoseRandomWalk, StateVelocity, VelocityFit
     from jaxtrack.likelihood import as_likelihood
     from jaxtrack.tracking import fit_velocity
 
     poses = np.cumsum(np.full((20, 8), 0.01), axis=0)
-    velocity = fit_velocity([poses])
+    fitted = PoseRandomWalk(jnp.full(8, 0.1, jnp.float64))
+    velocity = fit_velocity(fitted, [poses])
     assert isinstance(velocity, VelocityFit) and velocity.acceleration.dtype == jnp.float64
     flat = as_likelihood(lambda p, obs: jnp.zeros(p.shape[0], p.dtype))
-    fitted = PoseRandomWalk(jnp.full(8, 0.1, jnp.float64))
     for name, budget in (("sir", Budget(10)), ("apf", Budget(30, 3))):
-        tracker = build_tracker(get_tracker(name), fitted, flat, budget, velocity=velocity)
-        assert isinstance(tracker.dynamics, RootVelocity) and tracker.dynamics.acceleration.dtype == jnp.float32
-        assert tracker.init(jax.random.key(0), jnp.zeros(8)).particles.shape == (10, 14)
+        tracker = build_tracker(get_tracker(name), fitted, flat, budget, velocity_from=[poses])
+        assert isinstance(tracker.dynamics, StateVelocity) and tracker.dynamics.acceleration.dtype == jnp.float32
+        np.testing.assert_allclose(tracker.dynamics.initial_speed, velocity.initial_speed, rtol=1e-6)
+        assert tracker.init(jax.random.key(0), jnp.zeros(8)).particles.shape == (10, 8 + 4 * 6 + 1)
 
 
 def test_refined_budget_pays_for_gradients_with_particles():

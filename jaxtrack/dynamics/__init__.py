@@ -1,7 +1,8 @@
 """Dynamics: how particle states move between frames (``AbstractDynamics``), each with the
 function that fits it to motion data: the pose random walk of SIR and APF, second-order
 (constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
-Condensation, and MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals)."""
+Condensation, MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals), the
+GPDM's latent dynamics (001 eqs. 7-9), and a Kalman-tracked velocity that wraps any of them."""
 
 from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
 from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
@@ -21,8 +22,9 @@ from ._mrpf import transition_log_likelihood as transition_log_likelihood
 from ._random_walk import PoseRandomWalk as PoseRandomWalk
 from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
 from ._random_walk import make_pose_random_walk as make_pose_random_walk
-from ._velocity import RootVelocity as RootVelocity
+from ._velocity import StateVelocity as StateVelocity
 from ._velocity import VelocityFit as VelocityFit
 from ._velocity import fit_root_velocity as fit_root_velocity
+from ._velocity import fit_state_velocity as fit_state_velocity
 from ._velocity import heading_to_world as heading_to_world
 from ._velocity import world_to_heading as world_to_heading

@@ -49,6 +49,13 @@ class AbstractDynamics(eqx.Module):
         """A zero-mean local move: the transition's noise, standard deviation times ``factor``,
         without its drift (the diffusion of annealing layer m, factor ``decay^(m/2)``)."""
 
+    def velocity_states(self, poses: Float[Array, "frames dofs"]) -> Float[Array, "frames k"]:
+        """The K leading state entries of a pose sequence that carry a velocity
+        (``StateVelocity``): by default the six global entries (the root), for dynamics whose
+        other entries move in ways a constant velocity does not describe (e.g. a learned
+        latent dynamics) or whose state holds more than a pose's worth of a frame."""
+        return poses[:, :6]
+
     def log_transition(
         self, previous: Float[Array, "particles state"], states: Float[Array, "particles state"]
     ) -> Float[Array, " particles"]:

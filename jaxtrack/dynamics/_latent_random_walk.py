@@ -45,6 +45,12 @@ class LatentRandomWalk(AbstractDynamics):
     def perturb(self, key, states, factor):
         return gaussian_step(key, states, self.noise_scales() * factor)
 
+    def velocity_states(self, poses):
+        # The global entries and the latent point: a walk round the manifold's loop of a
+        # periodic motion is a nearly constant latent velocity.
+        g = self.manifold.global_dims
+        return jnp.concatenate([poses[:, :g], self.manifold.encode(poses[:, g:])], axis=1)
+
     def log_transition(self, previous, states):
         return gaussian_log_density(states, previous, self.noise_scales())
 

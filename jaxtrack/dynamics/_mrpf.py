@@ -109,6 +109,11 @@ class ManifoldRegularisedTransition(AbstractDynamics):
             correction = jnp.zeros(previous.shape[0], previous.dtype)
         return jnp.concatenate([particles, latent], axis=1), correction
 
+    def velocity_states(self, poses):
+        # The whole pose: each step's shift is pulled back onto the manifold (eq. 28), so a
+        # velocity of the joint angles predicts the limbs without leaving the learned poses.
+        return poses
+
     def perturb(self, key, states, factor):
         d = self.manifold.pose_dim
         return jnp.concatenate([gaussian_step(key, states[:, :d], self.s_xx * factor), states[:, d:]], axis=1)

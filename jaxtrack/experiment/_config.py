@@ -31,8 +31,10 @@ class ExperimentConfig:
             ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
         gradient_cost: what a likelihood gradient counts as, in evaluations (measured by
             ``benchmarks/bench_gradient.py``).
-        root_velocity: every tracker's dynamics carry a heading-frame root velocity fitted on
-            the validation motion (``jaxtrack.dynamics.RootVelocity``).
+        velocity: every tracker's dynamics carry a Kalman-tracked velocity of the root (in its
+            heading frame) and, where the dynamics support it, of the pose (MRPF) or the latent
+            point (latent random walk), fitted on the validation motion
+            (``jaxtrack.dynamics.StateVelocity``); False for the zero-mean walks of the papers.
         manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
     """
@@ -50,7 +52,7 @@ class ExperimentConfig:
     resolution: tuple[int, int] | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
-    root_velocity: bool = False
+    velocity: bool = True
     manifold: str | None = None
 
     def __post_init__(self):

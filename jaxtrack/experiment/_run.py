@@ -26,7 +26,6 @@ from ..tracking import (
     check_test_sequence,
     fit_manifold,
     fit_tracker,
-    fit_velocity,
     get_tracker,
     motion_data,
     prepare_test,
@@ -92,7 +91,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     Returns:
         a dict with "config", "manifolds" (per kind fitted: class, frames, objective, steps,
         fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
-        "root_velocity" (with ``config.root_velocity``),
+        "velocity" (with ``config.velocity``: per tracker, how many leading state entries carry
+        a velocity and its fitted spreads),
         "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
@@ -112,7 +112,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
-    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "sequences": {}, "estimates": {},
+    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "velocity": {}, "sequences": {}, "estimates": {},
                "shape_calibration": {}}
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
@@ -134,9 +134,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = config.tracking_budget
-    velocity = fit_velocity(validation_poses) if config.root_velocity else None
-    if velocity is not None:
-        results["root_velocity"] = dynamics_parameters(velocity)
+    velocity_from = validation_poses if config.velocity else None
     window = shared_window(test, config.frames, config.resolution)
     for seq, name in zip(test, test_names):
         scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
@@ -151,7 +149,12 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         groups = part_group_indices(scene.body.skeleton)
         per_method = {}
         for method in config.methods:
-            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity=velocity)
+            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from)
+            if config.velocity and method not in results["velocity"]:
+                moving = tracker.dynamics
+                spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
+                           for name in ("acceleration", "initial_speed", "displacement_noise")}
+                results["velocity"][method] = {"entries": moving.size, **spreads}
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
             for run in range(config.runs):
                 start = time.perf_counter()

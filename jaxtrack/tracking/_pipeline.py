@@ -18,7 +18,7 @@ import numpy as np
 from .._custom_types import PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
-from ..dynamics import VelocityFit, fit_root_velocity
+from ..dynamics import AbstractDynamics, VelocityFit, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import calibrate_shape, check_silhouettes, make_silhouette_likelihood
@@ -100,21 +100,25 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 
 
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
-                  velocity: VelocityFit | None = None):
+                  velocity_from: list[np.ndarray] | None = None):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
-    With ``velocity`` (``jaxtrack.dynamics.fit_root_velocity``) the filter's dynamics carry a
-    heading-frame root velocity (``RootVelocity``): any tracker whose filter has a ``dynamics``
-    field (``SIR``, ``APF``) can move with the body instead of diffusing behind it.
+    With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
+    carry a Kalman-tracked velocity (``jaxtrack.dynamics.StateVelocity``) of the state
+    entries they support (``velocity_states``: the root for every dynamics, the pose for MRPF,
+    the latent point for a latent random walk), fitted on those poses by ``fit_velocity``:
+    any tracker whose filter has a ``dynamics`` field (``SIR``, ``APF``) moves with the body
+    instead of diffusing behind it.
 
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``): its ``refine`` field
     is set, so any tracker whose filter has one (``SIR``, ``APF``) can be refined."""
     recipe.check_budget(budget)
     tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
-    if velocity is not None:
+    if velocity_from is not None:
         if not hasattr(tracker, "dynamics"):
             raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'dynamics' field: it cannot carry a velocity")
+        velocity = fit_velocity(tracker.dynamics, velocity_from)
         tracker = eqx.tree_at(lambda f: f.dynamics, tracker, cast_floating(velocity, TRACKING_DTYPE).wrap(tracker.dynamics))
     if not budget.refine_steps:
         return tracker
@@ -126,11 +130,11 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     return eqx.tree_at(lambda f: f.refine, tracker, refinement, is_leaf=lambda x: x is None)
 
 
-def fit_velocity(validation_poses) -> VelocityFit:
-    """The root velocity of every tracker (``build_tracker(..., velocity=)``), fitted in
-    float64 on the validation poses."""
+def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray]) -> VelocityFit:
+    """The velocity ``dynamics`` supports (``fit_state_velocity``), fitted in float64 on the
+    validation poses."""
     with jax.enable_x64(True):
-        return fit_root_velocity(list(validation_poses))
+        return fit_state_velocity(cast_floating(dynamics, jnp.float64), [np.asarray(p, np.float64) for p in validation_poses])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -217,7 +221,7 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0, root_velocity: bool = False):
+                   calibrate: bool = False, refine_steps: int = 0, velocity: bool = True):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
@@ -232,6 +236,6 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate)
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
-    velocity = fit_velocity(motion.validation) if root_velocity else None
-    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_, velocity=velocity)
+    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
+                            velocity_from=motion.validation if velocity else None)
     return track(tracker, jax.random.fold_in(run_root, 0), scene)
