@@ -182,7 +182,7 @@ def _track(args) -> int:
 
 
 _SCALE = 100.0
-_VELOCITY = True  # ExperimentConfig.velocity's default
+_VELOCITY = False  # ExperimentConfig.velocity's default
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -312,8 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
     experiment.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
                             help="give every tracker's dynamics a Kalman-tracked velocity of the root (and of the pose or latent "
-                                 "point where the dynamics support it) fitted on the validation motion; --no-velocity for the "
-                                 "papers' zero-mean walks (default: %(default)s)")
+                                 "point where the dynamics support it) fitted on the validation motion; it wins on the synthetic jog and "
+                                 "loses on real motion (default: %(default)s)")
     experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
                             help="the manifold of every manifold tracker (default: each tracker's paper's: "
                                  f"{_manifold_defaults()})")

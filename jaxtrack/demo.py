@@ -191,7 +191,7 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
 
 
 def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40, budget: int = 300, runs: int = 2,
-             methods=None, velocity: bool = True, manifold: str | None = None, verbose: bool = True):
+             methods=None, velocity: bool = False, manifold: str | None = None, verbose: bool = True):
     """The small experiment (module docstring); returns ``(results, paths)``.
 
     Args:

@@ -309,3 +309,25 @@ def _check_direct_construction(GPLVM, rbf_bias_kernel):
         GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros((5, 4)), mean=jnp.zeros(3), scale=jnp.ones(4))
     with pytest.raises(ValueError, match="data must be"):
         GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros(5), mean=jnp.zeros(3), scale=jnp.ones(4))
+
+
+def test_gpdm_objective_is_bounded_along_its_scale_and_constant_entries(walk_jog):
+    """001 eq. 11: scaling the pose kernel, its noise and W^2 together by s changes the objective
+    only by the bias's own prior, -ln s (the scale's and the precision beta_3 = 1/noise's terms
+    cancel; with a variance's sign they added -2 ln s, and the fit collapsed), and a pose entry
+    that never moves has no term, so its W cannot run off to infinity."""
+    walk, _ = walk_jog
+    frames = np.asarray(walk.pose[:40, 6:14], np.float64).copy()
+    frames[:, -1] = 0.3  # an entry that never moves
+    model = make_gpdm([frames], 2)
+    base = float(model.objective())
+    s = 1e3
+    scaled = eqx.tree_at(
+        lambda m: (m.kernel.log_beta, m.kernel.log_beta0, m.kernel.log_noise, m.log_w),
+        model,
+        (model.kernel.log_beta + np.log(s), model.kernel.log_beta0 + np.log(s), model.kernel.log_noise + np.log(s),
+         model.log_w + 0.5 * np.log(s)),
+    )
+    np.testing.assert_allclose(float(scaled.objective()), base - np.log(s), rtol=1e-9)
+    still = eqx.tree_at(lambda m: m.log_w, model, model.log_w.at[-1].set(20.0))
+    np.testing.assert_allclose(float(still.objective()), base, rtol=1e-12)

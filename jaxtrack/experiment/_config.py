@@ -34,7 +34,7 @@ class ExperimentConfig:
         velocity: every tracker's dynamics carry a Kalman-tracked velocity of the root (in its
             heading frame) and, where the dynamics support it, of the pose (MRPF) or the latent
             point (latent random walk), fitted on the validation motion
-            (``jaxtrack.dynamics.StateVelocity``); False for the zero-mean walks of the papers.
+            (``jaxtrack.dynamics.StateVelocity``); off by default (it loses on real motion).
         manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
     """
@@ -52,7 +52,7 @@ class ExperimentConfig:
     resolution: tuple[int, int] | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
-    velocity: bool = True
+    velocity: bool = False
     manifold: str | None = None
 
     def __post_init__(self):

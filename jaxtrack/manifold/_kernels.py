@@ -114,10 +114,13 @@ def safe_cholesky(K: Float[Array, "n n"]) -> Float[Array, "n n"]:
     return attempt(0)
 
 
-def gaussian_log_marginal(K: Float[Array, "n n"], Y: Float[Array, "n d"]) -> Float[Array, ""]:
-    """``sum_i ln N(Y[:, i] | 0, K) = -DN/2 ln 2pi - D/2 ln|K| - 1/2 tr(K^-1 Y Y^T)`` (000 eq. 15)."""
+def gaussian_log_marginal(K: Float[Array, "n n"], Y: Float[Array, "n d"], columns: Float[Array, " d"] | None = None) -> Float[Array, ""]:
+    """``sum_i ln N(Y[:, i] | 0, K) = -DN/2 ln 2pi - D/2 ln|K| - 1/2 tr(K^-1 Y Y^T)`` (000 eq. 15);
+    with ``columns`` (D,) of 0/1, only the columns marked 1 count."""
     n, d = Y.shape
     L = safe_cholesky(K)
     alpha = jax.scipy.linalg.cho_solve((L, True), Y)
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
-    return -0.5 * d * n * jnp.log(2 * jnp.pi) - 0.5 * d * logdet - 0.5 * jnp.sum(Y * alpha)
+    count = d if columns is None else jnp.sum(columns)
+    fit = Y * alpha if columns is None else Y * alpha * columns
+    return -0.5 * count * n * jnp.log(2 * jnp.pi) - 0.5 * count * logdet - 0.5 * jnp.sum(fit)

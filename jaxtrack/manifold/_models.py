@@ -276,16 +276,27 @@ class GPDM(AbstractManifold):
         n, _d = Y.shape
         q = X.shape[1]
         w = jnp.exp(self.log_w)
-        # ln p(Y | X, beta, W) (001 eq. 6): the GP likelihood of Y W, plus N ln|W|.
-        log_lik = gaussian_log_marginal(self.kernel.gram(X), Y * w) + n * jnp.sum(self.log_w)
+        # ln p(Y | X, beta, W) (001 eq. 6): the GP likelihood of Y W, plus N ln|W|. A pose entry
+        # that never moves in the training data (zero once centred, to rounding) is left out: its term
+        # N ln w_d grows without bound in w_d (the fit ran off to noise 1e-14 on CMU walks,
+        # which hold one such entry); its prediction is its constant mean.
+        moving = (jnp.max(jnp.abs(Y), axis=0) > 1e-9).astype(Y.dtype)
+        log_lik = gaussian_log_marginal(self.kernel.gram(X), Y * w, moving) + n * jnp.sum(moving * self.log_w)
         # ln p(X | alpha) (001 eqs. 7-8): first frames ~ N(0, I), transitions ~ GP.
         ins, outs, firsts = self._transitions()
         x_in, x_out = X[ins], X[outs]
         log_dyn = gaussian_log_marginal(self.dynamics.gram(x_in), x_out) if len(ins) else 0.0
         log_first = -0.5 * jnp.sum(X[firsts] ** 2) - 0.5 * q * len(firsts) * jnp.log(2 * jnp.pi)
-        # p(theta) proportional to prod 1/theta (001 eq. 10) for the kernel hyperparameters.
-        log_prior = -(self.kernel.log_beta + self.kernel.log_gamma + self.kernel.log_beta0 + self.kernel.log_noise)
-        log_prior = log_prior - (self.dynamics.log_a1 + self.dynamics.log_a2 + self.dynamics.log_a3 + self.dynamics.log_noise)
+        # p(theta) proportional to prod 1/theta (001 eqs. 10-11: + sum ln alpha_i + sum ln beta_i
+        # in the negative log posterior), where alpha_4 and beta_3 are the noise *precisions*:
+        # our kernels hold the noise variance, so its term has the opposite sign. (With the sign
+        # of a variance the prior rewarded shrinking the pose kernel's scale and noise together,
+        # a direction in which the likelihood with free W is flat: the fit collapsed onto
+        # noise ~ 1e-14 and a dynamics GP of variance 1e24 on CMU walks.) Scaling the pose
+        # kernel, its noise and W^2 together by s now changes the objective only by the bias
+        # term's prior, -ln s.
+        log_prior = -(self.kernel.log_beta + self.kernel.log_gamma + self.kernel.log_beta0 - self.kernel.log_noise)
+        log_prior = log_prior - (self.dynamics.log_a1 + self.dynamics.log_a2 + self.dynamics.log_a3 - self.dynamics.log_noise)
         return log_lik + log_dyn + log_first + log_prior
 
     def predictor(self) -> GPPredictor:

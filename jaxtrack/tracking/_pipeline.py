@@ -221,7 +221,7 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0, velocity: bool = True):
+                   calibrate: bool = False, refine_steps: int = 0, velocity: bool = False):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
