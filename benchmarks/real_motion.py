@@ -2,7 +2,9 @@
 walk and jog and the Bandai walk and run, the test takes rendered into noisy 80x60 views with a
 body that is not the tracker's (torso 20 % thicker, legs 15 % thinner, arms 10 % thicker than
 the converted subject's capsules; the test files carry no radii, so the trackers use the
-defaults), in 4 views and in 3, every tracker with and without the Kalman-tracked velocity.
+defaults), in 4 views and in 3, every tracker with its own defaults or with the Kalman-tracked
+velocity on or off for all (``--velocity``), on each tracker's own manifold or on one named for
+all (``--manifold``).
 
 The converted sequences come from the two shell scripts' first steps (``jaxtrack convert`` of
 the shared data at 60 Hz); point ``--cmu`` and ``--bandai`` at their output folders:
@@ -19,6 +21,7 @@ the mean error over the last quarter of the frames to the first quarter (a diver
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import time
@@ -67,7 +70,10 @@ def main():
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--views", type=int, nargs="+", default=[4, 3])
-    parser.add_argument("--velocity", choices=["both", "on", "off"], default="both")
+    parser.add_argument("--velocity", nargs="+", choices=["own", "on", "off"], default=["own"],
+                        help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
+    parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm"],
+                        help="the manifold of every manifold tracker (own: each tracker's paper's)")
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
@@ -78,7 +84,7 @@ def main():
     from jaxtrack.io import load_sequence
 
     folders = {"cmu": args.cmu, "bandai": args.bandai}
-    velocities = {"both": (False, True), "on": (True,), "off": (False,)}[args.velocity]
+    velocities = [{"own": None, "on": True, "off": False}[v] for v in args.velocity]
     key = jax.random.key(args.seed)
     rows = []
     for name in args.sequences:
@@ -94,26 +100,31 @@ def main():
         validation = [load_sequence(paths[t]) for t in validation_takes]
         for views in args.views:
             test = [other_body_scene(jax.random.fold_in(key, views), load_sequence(paths[test_take]), views, frames)]
-            for velocity in velocities:
+            for velocity, manifold in itertools.product(velocities, args.manifold):
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
-                                          seed=args.seed, velocity=velocity)
+                                          seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold)
                 start = time.perf_counter()
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
-                print(f"\n{name}, {views} views, other body, velocity={velocity} ({seconds:.0f} s)\n")
+                label = "own" if velocity is None else velocity
+                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold} ({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
-                    "sequence": name, "views": views, "velocity": velocity, "frames": test[0].num_frames, "seconds": seconds,
-                    "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
+                    "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "frames": test[0].num_frames,
+                    "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
-                                    "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"])}
+                                    "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
+                                    "velocity": config.velocity_of(m), "manifold": config.manifold_of(m)}
                                 for m in args.methods},
                 })
                 if args.json:
                     with open(args.json, "w") as f:
                         json.dump(rows, f, indent=1)
+                # Every experiment compiles its own trackers; keeping them all exhausted the
+                # process's memory maps (LLVM "Cannot allocate memory") after about ten.
+                jax.clear_caches()
 
 
 if __name__ == "__main__":

@@ -182,7 +182,6 @@ def _track(args) -> int:
 
 
 _SCALE = 100.0
-_VELOCITY = False  # ExperimentConfig.velocity's default
 
 
 def _resolution(text: str) -> tuple[int, int]:
@@ -191,6 +190,12 @@ def _resolution(text: str) -> tuple[int, int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 80x60, got {text!r}") from None
     return width, height
+
+
+def _velocity_defaults() -> str:
+    from .tracking import available_trackers, get_tracker
+
+    return ", ".join(n for n in available_trackers() if get_tracker(n).velocity) + " on, the others off"
 
 
 def _manifold_defaults() -> str:
@@ -310,12 +315,12 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--refine-steps", type=int, default=0,
                             help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    experiment.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
-                            help="give every tracker's dynamics a Kalman-tracked velocity of the root (and of the pose or latent "
-                                 "point where the dynamics support it) fitted on the validation motion; it wins on the synthetic jog and "
-                                 "loses on real motion (default: %(default)s)")
+    experiment.add_argument("--velocity", action=argparse.BooleanOptionalAction,
+                            help="give every tracker's dynamics (--no-velocity: none) a Kalman-tracked velocity of the root (and "
+                                 "of the pose or latent point where the dynamics support it) fitted on the validation motion "
+                                 f"(default: each tracker's own: {_velocity_defaults()})")
     experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
-                            help="the manifold of every manifold tracker (default: each tracker's paper's: "
+                            help="the manifold of every manifold tracker (default: each tracker's own: "
                                  f"{_manifold_defaults()})")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
@@ -323,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
     track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
-    track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (bc-gplvm for mrpf)")
+    track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (a gpdm for gpapf; mrpf-alg1 needs a bc-gplvm)")
     track.add_argument("--validation", required=True,
                        help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
@@ -336,9 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--refine-steps", type=int, default=0,
                        help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    track.add_argument("--velocity", action=argparse.BooleanOptionalAction, default=_VELOCITY,
-                       help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion "
-                            "(default: %(default)s)")
+    track.add_argument("--velocity", action=argparse.BooleanOptionalAction,
+                       help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion, or not "
+                            f"(default: the tracker's own: {_velocity_defaults()})")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 

@@ -191,13 +191,14 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
 
 
 def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40, budget: int = 300, runs: int = 2,
-             methods=None, velocity: bool = False, manifold: str | None = None, verbose: bool = True):
+             methods=None, velocity: bool | None = None, manifold: str | None = None, verbose: bool = True):
     """The small experiment (module docstring); returns ``(results, paths)``.
 
     Args:
         methods: registered tracker names (default: the papers' five).
         velocity, manifold: as ``ExperimentConfig``'s (a Kalman-tracked velocity for every
-            tracker; the manifold of every manifold tracker, None for each one's own).
+            tracker or none, None for each one's own; the manifold of every manifold tracker,
+            None for each one's own).
     """
     from .experiment import ExperimentConfig, results_table, run_experiment, write_outputs
     from .tracking import PAPER_TRACKERS

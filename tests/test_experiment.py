@@ -28,15 +28,19 @@ def test_bad_experiment_inputs(sequences):
         ExperimentConfig(methods=("sir", "sir"))
     with pytest.raises(ValueError, match="GPAPF needs at least 2 layers"):
         ExperimentConfig(methods=("gpapf",), budget=100, layers=1)
-    with pytest.raises(ValueError, match="MRPF cannot run on a gpdm manifold"):
-        ExperimentConfig(methods=("mrpf",), manifold="gpdm")
+    assert ExperimentConfig(methods=("mrpf",), manifold="gpdm").manifold_kinds == ("gpdm",)  # GPDM latent proposal
     with pytest.raises(ValueError, match="manifold must be one of"):
         ExperimentConfig(manifold="isomap")
     # Each manifold tracker runs on its paper's manifold unless one is named for all.
-    assert ExperimentConfig().manifold_kinds == ("bc-gplvm", "gpdm")
+    assert ExperimentConfig().manifold_kinds == ("gpdm",)
+    assert ExperimentConfig(methods=("mrpf", "mrpf-alg1", "gpapf")).manifold_kinds == ("gpdm", "bc-gplvm")
     assert ExperimentConfig(manifold="bc-gplvm").manifold_kinds == ("bc-gplvm",)
     assert ExperimentConfig(methods=("sir", "apf")).manifold_kinds == ()
-    assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf")] == [None, "bc-gplvm", "gpdm", "bc-gplvm"]
+    assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf")] == [None, "gpdm", "gpdm", "gpdm"]
+    # Each tracker carries its own velocity default (the one-layer manifold trackers) unless one is named for all.
+    assert [ExperimentConfig().velocity_of(m) for m in ("sir", "apf", "mrpf", "gpapf", "latentpf")] == [False, False, True, False, True]
+    assert all(ExperimentConfig(velocity=True).velocity_of(m) for m in ("sir", "gpapf"))
+    assert not any(ExperimentConfig(velocity=False).velocity_of(m) for m in ("mrpf", "latentpf"))
     with pytest.raises(ValueError, match="needs silhouettes and cameras"):
         check_test_sequence(train[0], "walk.npz")
     with pytest.raises(ValueError, match="needs silhouettes, which the file lacks"):

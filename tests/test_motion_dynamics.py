@@ -11,10 +11,12 @@ from jaxtrack.data import generate_motion
 from jaxtrack.dynamics import (
     GPDMLatentDynamics,
     LatentRandomWalk,
+    ManifoldRegularisedTransition,
     PoseRandomWalk,
     StateVelocity,
     fit_gpdm_latent_dynamics,
     fit_latent_dynamics,
+    fit_mrpf_transition,
     fit_root_velocity,
     fit_state_velocity,
     heading_to_world,
@@ -222,6 +224,34 @@ def test_gpdm_gpapf_with_one_layer_and_beta_one_is_latent_sir(gpdm_prior, walk, 
     np.testing.assert_allclose(info_apf.log_evidence, info_sir.log_evidence, rtol=1e-12)
 
 
+def test_mrpf_on_a_gpdm_draws_its_latent_points_from_the_gpdm_dynamics(gpdm_prior, walk, getkey):
+    """MRPF's GPDM latent proposal: z_t ~ N(mu_X(z_{t-1}), sigma_X^2 I) from the particle's own
+    latent point (001 eqs. 7-9), then eq. 28; log_transition is the density it draws from."""
+    with pytest.raises(ValueError, match="latent_proposal='gpdm'"):
+        fit_mrpf_transition(gpdm_prior, walk[45:], key=getkey())
+    with pytest.raises(ValueError, match="latent_proposal must be one of"):
+        fit_mrpf_transition(gpdm_prior, walk[45:], key=getkey(), latent_proposal="walk")
+    mrpf = fit_mrpf_transition(gpdm_prior, walk[45:], key=getkey(), latent_proposal="gpdm")
+    assert isinstance(mrpf, ManifoldRegularisedTransition) and mrpf.latent_proposal == "gpdm"
+    _, variance = gpdm_prior.predict_latent(gpdm_prior.encode(jnp.asarray(walk[45:-1, 6:])))
+    np.testing.assert_allclose(mrpf.s_xz, np.sqrt(np.mean(np.asarray(variance))), rtol=1e-6)
+    start = mrpf.init(getkey(), jnp.asarray(walk[10]), 40000)
+    start = start.at[:, 32:].set(start[:, 32:] + 0.3)  # a latent point away from the pose's own
+    drawn, correction = mrpf.propose(getkey(), start)
+    np.testing.assert_array_equal(correction, np.zeros(40000))
+    mean, variance = gpdm_prior.predict_latent(start[:1, 32:])
+    sd = float(jnp.sqrt(variance[0]))
+    np.testing.assert_allclose(np.asarray(drawn[:, 32:]).mean(0), mean[0], atol=4 * sd / 200)
+    np.testing.assert_allclose(np.asarray(drawn[:, 32:]).std(0), sd, rtol=0.02)
+    # The density: latent part with its per-particle normaliser, pose part eq. 28.
+    previous, states = start[:3], drawn[:3]
+    mean3, var3 = gpdm_prior.predict_latent(previous[:, 32:])
+    latent_part = np.asarray(-0.5 * jnp.sum((states[:, 32:] - mean3) ** 2, 1) / var3 - jnp.log(var3))
+    pose_mean, pose_sd = mrpf._product(previous[:, :32], gpdm_prior.decode_mean(states[:, 32:]))
+    pose_part = np.asarray(-0.5 * jnp.sum(((states[:, :32] - pose_mean) / pose_sd) ** 2, 1))
+    np.testing.assert_allclose(mrpf.log_transition(previous, states), latent_part + pose_part, rtol=1e-9)
+
+
 @pytest.mark.slow
 def test_new_dynamics_same_key_same_result_jitted_or_not(gpdm_prior, walk, getkey):
     from jaxtrack.likelihood import as_likelihood
@@ -233,6 +263,7 @@ def test_new_dynamics_same_key_same_result_jitted_or_not(gpdm_prior, walk, getke
         SIR(velocity.wrap(PoseRandomWalk(jnp.full(32, 0.02))), lik, 30),
         APF(velocity.wrap(gpdm), lik, 20, num_layers=2, estimator=StateMean()),
         SIR(gpdm, lik, 30, refine=LangevinRefinement(1)),
+        SIR(velocity.wrap(fit_mrpf_transition(gpdm_prior, walk[45:], key=getkey(), latent_proposal="gpdm")), lik, 30),
     ]
     key = getkey()
     observations = jnp.asarray(walk[11:13])
@@ -250,6 +281,9 @@ def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey
     cases = [
         StateVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
         fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
+        # The unfitted GPDM's eq. 28 scales sit at the floor, a ridge no diagonal MALA crosses:
+        # moderate scales, the latent draw of the GPDM.
+        ManifoldRegularisedTransition(gpdm_prior, jnp.full(32, 0.05), jnp.full(2, 0.1), jnp.full(26, 0.05), latent_proposal="gpdm"),
     ]
     for dynamics in cases:
         check_refinement_keeps_transition(dynamics, jnp.asarray(walk[40]), getkey)

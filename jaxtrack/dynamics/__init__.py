@@ -14,6 +14,7 @@ from ._gpdm_latent import fit_gpdm_latent_dynamics as fit_gpdm_latent_dynamics
 from ._gpdm_latent import fit_latent_dynamics as fit_latent_dynamics
 from ._latent_random_walk import LatentRandomWalk as LatentRandomWalk
 from ._latent_random_walk import fit_latent_random_walk as fit_latent_random_walk
+from ._mrpf import MRPF_LATENT_PROPOSALS as MRPF_LATENT_PROPOSALS
 from ._mrpf import MRPF_PROPOSALS as MRPF_PROPOSALS
 from ._mrpf import ManifoldRegularisedTransition as ManifoldRegularisedTransition
 from ._mrpf import fit_mrpf_transition as fit_mrpf_transition

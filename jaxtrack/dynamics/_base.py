@@ -77,13 +77,14 @@ def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "p
     return jnp.broadcast_to(state, (num_particles,) + state.shape)
 
 
-def gaussian_step(key: PRNGKeyArray, states: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, "n s"]:
-    """``s + N(0, diag(scales^2))`` for every particle."""
+def gaussian_step(key: PRNGKeyArray, states: Float[Array, "n s"], scales: Float[Array, ...]) -> Float[Array, "n s"]:
+    """``s + N(0, diag(scales^2))`` for every particle; ``scales`` (S,), or (N, S) / (N, 1) per particle."""
     return states + scales * jax.random.normal(key, states.shape, states.dtype)
 
 
-def gaussian_log_density(values: Float[Array, "n s"], means: Float[Array, "n s"], scales: Float[Array, " s"]) -> Float[Array, " n"]:
-    """``sum_j ln N(values_j | means_j, scales_j^2)`` per row, without the constant
+def gaussian_log_density(values: Float[Array, "n s"], means: Float[Array, "n s"], scales: Float[Array, ...]) -> Float[Array, " n"]:
+    """``sum_j ln N(values_j | means_j, scales_j^2)`` per row (``scales`` (S,) or per particle,
+    (N, S) / (N, 1)), without the constant
     ``-sum_j ln(sqrt(2 pi) scales_j)`` (entries of zero scale are left out)."""
     safe = jnp.where(scales > 0, scales, 1.0)
     return -0.5 * jnp.sum(jnp.where(scales > 0, ((values - means) / safe) ** 2, 0.0), axis=-1)

@@ -35,6 +35,7 @@ from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_de
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
 MRPF_PROPOSALS = ("product", "prior")
+MRPF_LATENT_PROPOSALS = ("back-constraint", "gpdm")
 
 
 class ManifoldRegularisedTransition(AbstractDynamics):
@@ -55,6 +56,16 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     With ``s_zx`` very large both reduce to ``PoseRandomWalk(s_xx)``. ``perturb`` is the eq. 29
     random walk with ``s_xx`` scaled.
 
+    ``latent_proposal`` picks where ``z_t`` comes from:
+
+    - ``"back-constraint"`` (000 eq. 27): ``z_t ~ N(g(x_{t-1}), diag(s_xz^2))``, on a BC-GPLVM;
+    - ``"gpdm"`` (the latent proposal issue #13 asks for, on 001's GPDM): ``z_t`` follows the
+      GPDM's predictive dynamics from the particle's own previous latent draw,
+      ``z_t ~ N(mu_X(z_{t-1}), sigma_X^2(z_{t-1}) I)`` (001 eqs. 7-9), so the latent point
+      advances along the learned cycle and carries the gait phase the pose alone leaves
+      ambiguous; ``s_xz`` is then unused (kept for the shape checks; the fit sets it to the
+      RMS predictive sd).
+
     The particle state is ``[x_t (D), z_t (q)]``: the pose and the latent draw it was made with
     (the next draw depends on ``x_t`` alone, eq. 27), so that the transition has a density,
     ``p(z_t | x_{t-1}) p(x_t | x_{t-1}, z_t)``, for gradient-refined moves.
@@ -69,12 +80,12 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     s_xz: Float[Array, " q"]
     s_zx: Float[Array, " a"]
     proposal: str = eqx.field(static=True, default="product")
+    latent_proposal: str = eqx.field(static=True, default="back-constraint")
 
     def __check_init__(self):
         if self.proposal not in MRPF_PROPOSALS:
             raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {self.proposal!r}")
-        if not self.manifold.has_back_constraint:
-            raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
+        check_latent_proposal(self.manifold, self.latent_proposal)
         check_scale_vector("s_xx", self.s_xx, self.manifold.pose_dim)
         check_scale_vector("s_xz", self.s_xz, self.manifold.latent_dim)
         check_scale_vector("s_zx", self.s_zx, self.manifold.pose_dim - self.manifold.global_dims)
@@ -96,10 +107,18 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         angles = previous[:, g:] + pull * (manifold_mean - previous[:, g:])
         return jnp.concatenate([previous[:, :g], angles], axis=1), jnp.concatenate([self.s_xx[:g], s_xx * jnp.sqrt(1.0 - pull)])
 
+    def _latent_prior(self, previous):
+        """Mean (N, q) and standard deviation ((q,) or (N, 1)) of ``p(z_t | state_{t-1})``."""
+        d = self.manifold.pose_dim
+        if self.latent_proposal == "gpdm":
+            mean, variance = self.manifold.predict_latent(previous[:, d:])
+            return mean, jnp.sqrt(variance)[:, None]
+        return self.manifold.encode(previous[:, self.manifold.global_dims : d]), self.s_xz
+
     def propose(self, key, previous):
         g = self.manifold.global_dims
+        latent = gaussian_step(jax.random.fold_in(key, LATENT_STREAM), *self._latent_prior(previous))
         previous = self.to_pose(previous)
-        latent = gaussian_step(jax.random.fold_in(key, LATENT_STREAM), self.manifold.encode(previous[:, g:]), self.s_xz)
         manifold_mean = self.manifold.decode_mean(latent)
         if self.proposal == "prior":
             particles = gaussian_step(key, previous, self.s_xx)
@@ -110,8 +129,11 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         return jnp.concatenate([particles, latent], axis=1), correction
 
     def velocity_states(self, poses):
-        # The whole pose: each step's shift is pulled back onto the manifold (eq. 28), so a
-        # velocity of the joint angles predicts the limbs without leaving the learned poses.
+        # Eq. 27's draw carries no phase: the whole pose, each step's shift pulled back onto the
+        # manifold (eq. 28), so a velocity of the joint angles predicts the limbs without leaving
+        # the learned poses. The GPDM's draw advances the limbs itself: the root alone.
+        if self.latent_proposal == "gpdm":
+            return super().velocity_states(poses)
         return poses
 
     def perturb(self, key, states, factor):
@@ -121,7 +143,10 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     def log_transition(self, previous, states):
         g, d = self.manifold.global_dims, self.manifold.pose_dim
         before, pose, latent = previous[:, :d], states[:, :d], states[:, d:]
-        log_latent = gaussian_log_density(latent, self.manifold.encode(before[:, g:]), self.s_xz)  # eq. 27
+        latent_mean, latent_sd = self._latent_prior(previous)
+        log_latent = gaussian_log_density(latent, latent_mean, latent_sd)  # eq. 27, or the GPDM's
+        if self.latent_proposal == "gpdm":  # a per-particle variance: its normaliser depends on the particle
+            log_latent = log_latent - self.manifold.latent_dim * jnp.log(latent_sd[:, 0])
         manifold_mean = self.manifold.decode_mean(latent)
         if self.proposal == "prior":  # eq. 29 times eq. 30, as Alg. 1 weighs it
             return log_latent + gaussian_log_density(pose, before, self.s_xx) + gaussian_log_density(pose[:, g:], manifold_mean, self.s_zx)
@@ -131,9 +156,20 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         return jnp.concatenate([self.s_xx, self.s_xz])
 
 
+def check_latent_proposal(manifold: ManifoldPrior, latent_proposal: str) -> None:
+    """Raise ``ValueError`` unless ``manifold`` supports MRPF's ``latent_proposal``."""
+    if latent_proposal not in MRPF_LATENT_PROPOSALS:
+        raise ValueError(f"latent_proposal must be one of {MRPF_LATENT_PROPOSALS}, got {latent_proposal!r}")
+    if latent_proposal == "back-constraint" and not manifold.has_back_constraint:
+        raise ValueError("MRPF's eq. 27 proposal needs a back-constrained manifold (BC-GPLVM); on a GPDM use "
+                         "latent_proposal='gpdm'")
+    if latent_proposal == "gpdm" and manifold.latent_dynamics is None:
+        raise ValueError("MRPF's GPDM latent proposal needs a manifold with latent dynamics (a GPDM)")
+
+
 def fit_mrpf_transition(
-    manifold: ManifoldPrior, validation, *, key: PRNGKeyArray, proposal: str = "product", samples: int = 64,
-    floor: float = 1e-3,
+    manifold: ManifoldPrior, validation, *, key: PRNGKeyArray, proposal: str = "product",
+    latent_proposal: str = "back-constraint", samples: int = 64, floor: float = 1e-3,
 ) -> ManifoldRegularisedTransition:
     """Fit MRPF's scales on validation motion (module docstring).
 
@@ -143,6 +179,8 @@ def fit_mrpf_transition(
         key: PRNG key of the latent draws of the Monte-Carlo transition likelihood (the fit is
             a deterministic function of the data and the key).
         proposal: "product" (joint maximum-likelihood fit) or "prior" (separate fits).
+        latent_proposal: "back-constraint" (eq. 27, BC-GPLVM) or "gpdm" (the GPDM's predictive
+            dynamics; the validation latent draws start from each frame's encoded pose).
         samples: latent draws per validation frame.
         floor: smallest scale, so that no entry is deterministic.
 
@@ -151,18 +189,24 @@ def fit_mrpf_transition(
     """
     if proposal not in MRPF_PROPOSALS:
         raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {proposal!r}")
-    if not manifold.has_back_constraint:
-        raise ValueError("MRPF needs a back-constrained manifold (BC-GPLVM): p(z|x) uses the back-constraint g (000 eq. 27)")
+    check_latent_proposal(manifold, latent_proposal)
     sequences = motion_sequences(validation, manifold.pose_dim)
     g = manifold.global_dims
     dtype = manifold.training_latent.dtype
     s_xx = rms_step(sequences, floor)
     latent = [np.asarray(manifold.encode(jnp.asarray(s[:, g:], dtype)), np.float64) for s in sequences]
-    s_xz = rms_step(latent, floor)
+    if latent_proposal == "gpdm":
+        predicted = [manifold.predict_latent(jnp.asarray(z[:-1], dtype)) for z in latent]
+        centres = [np.asarray(mean, np.float64) for mean, _ in predicted]
+        spreads = [np.sqrt(np.asarray(variance, np.float64))[:, None] for _, variance in predicted]
+        s_xz = np.full(manifold.latent_dim, np.sqrt(np.mean(np.square(np.concatenate(spreads)))))
+    else:
+        s_xz = rms_step(latent, floor)
+        centres, spreads = [z[:-1] for z in latent], [s_xz] * len(latent)
     residuals, manifold_means = [], []
-    for i, (s, z) in enumerate(zip(sequences, latent)):
+    for i, (s, z, centre, spread) in enumerate(zip(sequences, latent, centres, spreads)):
         eps = np.asarray(jax.random.normal(jax.random.fold_in(key, i), (samples,) + z[:-1].shape), np.float64)
-        draws = (z[:-1][None] + s_xz * eps).reshape(-1, z.shape[1])
+        draws = (centre[None] + spread * eps).reshape(-1, z.shape[1])
         mean = np.asarray(manifold.decode_mean(jnp.asarray(draws, dtype)), np.float64).reshape(samples, len(s) - 1, -1)
         residuals.append((s[1:, g:][None] - mean).reshape(-1, mean.shape[-1]))
         manifold_means.append(mean)
@@ -176,7 +220,7 @@ def fit_mrpf_transition(
         s_zx = s_zx_alone
     return ManifoldRegularisedTransition(
         manifold=manifold, s_xx=jnp.asarray(s_xx, dtype), s_xz=jnp.asarray(s_xz, dtype), s_zx=jnp.asarray(s_zx, dtype),
-        proposal=proposal,
+        proposal=proposal, latent_proposal=latent_proposal,
     )
 
 

@@ -31,10 +31,11 @@ class ExperimentConfig:
             ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
         gradient_cost: what a likelihood gradient counts as, in evaluations (measured by
             ``benchmarks/bench_gradient.py``).
-        velocity: every tracker's dynamics carry a Kalman-tracked velocity of the root (in its
-            heading frame) and, where the dynamics support it, of the pose (MRPF) or the latent
-            point (latent random walk), fitted on the validation motion
-            (``jaxtrack.dynamics.StateVelocity``); off by default (it loses on real motion).
+        velocity: True: every tracker's dynamics carry a Kalman-tracked velocity of the root (in
+            its heading frame) and, where the dynamics support it, of the pose (MRPF on a
+            BC-GPLVM) or the latent point (latent random walk), fitted on the validation motion
+            (``jaxtrack.dynamics.StateVelocity``); False: none does; None: each tracker's own
+            (``TrackerRecipe.velocity``: MRPF and LatentPF).
         manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
     """
@@ -52,7 +53,7 @@ class ExperimentConfig:
     resolution: tuple[int, int] | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
-    velocity: bool = False
+    velocity: bool | None = None
     manifold: str | None = None
 
     def __post_init__(self):
@@ -92,6 +93,10 @@ class ExperimentConfig:
         """The manifold kind tracker ``method`` runs on (None if it needs none)."""
         recipe = get_tracker(method)
         return recipe.manifold_for(self.manifold) if recipe.needs_manifold else None
+
+    def velocity_of(self, method: str) -> bool:
+        """Whether tracker ``method`` carries a Kalman-tracked velocity."""
+        return get_tracker(method).velocity_for(self.velocity)
 
     @property
     def manifold_kinds(self) -> tuple[str, ...]:

@@ -91,8 +91,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     Returns:
         a dict with "config", "manifolds" (per kind fitted: class, frames, objective, steps,
         fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
-        "velocity" (with ``config.velocity``: per tracker, how many leading state entries carry
-        a velocity and its fitted spreads),
+        "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
+        entries carry a velocity and its fitted spreads),
         "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
@@ -134,7 +134,6 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = config.tracking_budget
-    velocity_from = validation_poses if config.velocity else None
     window = shared_window(test, config.frames, config.resolution)
     for seq, name in zip(test, test_names):
         scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
@@ -149,8 +148,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         groups = part_group_indices(scene.body.skeleton)
         per_method = {}
         for method in config.methods:
+            velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from)
-            if config.velocity and method not in results["velocity"]:
+            if velocity_from is not None and method not in results["velocity"]:
                 moving = tracker.dynamics
                 spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
                            for name in ("acceleration", "initial_speed", "displacement_noise")}

@@ -1,5 +1,6 @@
 """LatentPF (003 Alg. 2): Condensation over (global entries, latent point), estimate mu(E[omega]); the
-latent random walk of its paper, or on a GPDM the GPDM's predictive dynamics."""
+latent random walk of its paper on a manifold without dynamics, or on a GPDM (the default) the
+GPDM's predictive dynamics."""
 
 from ..dynamics import fit_latent_dynamics
 from ..filters import SIR, StateMean
@@ -16,4 +17,4 @@ def build(dynamics, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,
-                       needs_manifold=True)
+                       needs_manifold=True, manifold="gpdm", velocity=True)

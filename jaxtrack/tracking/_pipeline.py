@@ -221,8 +221,9 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0, velocity: bool = False):
-    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence.
+                   calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None):
+    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
+    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``).
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
@@ -237,5 +238,5 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
-                            velocity_from=motion.validation if velocity else None)
+                            velocity_from=motion.validation if recipe.velocity_for(velocity) else None)
     return track(tracker, jax.random.fold_in(run_root, 0), scene)

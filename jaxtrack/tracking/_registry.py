@@ -103,9 +103,14 @@ class TrackerRecipe:
             ``budget.particles`` particles, annealed ones ``budget.per_layer`` per layer (both
             leave room for gradient-refined moves, which ``build_tracker`` adds).
         needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
-        manifold: the manifold kind the tracker's paper uses ("bc-gplvm" or "gpdm"), fitted for
-            it unless the experiment names one for every tracker.
+        manifold: the manifold kind the tracker runs on by default ("bc-gplvm" or "gpdm"),
+            fitted for it unless the experiment names one for every tracker.
         manifolds: the manifold kinds the tracker can run on.
+        velocity: whether the tracker's dynamics carry a Kalman-tracked velocity
+            (``dynamics.StateVelocity``) unless the experiment says otherwise for every tracker:
+            on for the one-layer manifold trackers, whose step is the prior's; off for the
+            annealed ones, whose layers find the step in the likelihood, and for the plain
+            baselines (README, "Dynamics that move").
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
     """
@@ -118,6 +123,7 @@ class TrackerRecipe:
     needs_manifold: bool = False
     manifold: str = "bc-gplvm"
     manifolds: tuple[str, ...] = MANIFOLD_KINDS
+    velocity: bool = False
     annealed: bool = False
     min_layers: int = 1
 
@@ -137,6 +143,11 @@ class TrackerRecipe:
         if kind not in self.manifolds:
             raise ValueError(f"{self.label} cannot run on a {kind} manifold (it runs on: {', '.join(self.manifolds)})")
         return kind
+
+    def velocity_for(self, requested: bool | None) -> bool:
+        """Whether this tracker carries a velocity when the experiment asks for ``requested``
+        (None: the tracker's own default)."""
+        return self.velocity if requested is None else bool(requested)
 
     def check_budget(self, budget: Budget) -> None:
         """Raise ``ValueError`` if this tracker cannot spend ``budget``."""
