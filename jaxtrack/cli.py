@@ -11,6 +11,9 @@ import sys
 
 def _demo(args) -> int:
     from .demo import run_demo, run_likelihood_demo
+    from .io import check_folder
+
+    check_folder(args.out)
 
     if args.likelihood:
         run_likelihood_demo(args.out, seed=args.seed, num_frames=args.frames or 60, particles=args.budget or 500)
@@ -20,11 +23,13 @@ def _demo(args) -> int:
 
 
 def _render(args) -> int:
-    from .io import load_sequence
+    from .io import check_output, load_sequence
     from .viz import animation, contact_sheet
 
-    sequence = load_sequence(args.sequence)
     stem = args.out or os.path.splitext(args.sequence)[0]
+    for suffix in ("_sheet.png", ".gif"):
+        check_output(stem + suffix, [args.sequence, args.estimate])
+    sequence = load_sequence(args.sequence)
     estimate = None
     if args.estimate:
         estimate = load_sequence(args.estimate).joints3d
@@ -40,11 +45,16 @@ def _convert(args) -> int:
     import json
 
     from ._convert import convert_motion
+    from .io import check_output
 
+    args.out = check_output(args.out, [args.source, args.asf, args.mapping], suffix=".npz")
     mapping = None
     if args.mapping:
         with open(args.mapping, encoding="utf-8") as handle:
-            mapping = json.load(handle)
+            try:
+                mapping = json.load(handle)
+            except json.JSONDecodeError as err:
+                raise ValueError(f"{args.mapping}:{err.lineno}: not valid JSON ({err.msg}, column {err.colno})") from None
     report = convert_motion(
         args.source, args.out, fps=args.fps, asf=args.asf, source_fps=args.source_fps, mapping=mapping, seed=args.seed, verbose=True
     )
@@ -60,8 +70,9 @@ def _scene(args) -> int:
 
     from .camera import default_rig
     from .data import NO_NOISE, SilhouetteNoise, scene_from_sequence
-    from .io import load_sequence, save_sequence
+    from .io import check_output, load_sequence, save_sequence
 
+    args.out = check_output(args.out, [args.source], suffix=".npz")
     sequence = load_sequence(args.source)
     rig = default_rig(args.width, args.height, num_views=args.views)
     noise = NO_NOISE if args.clean else SilhouetteNoise()
@@ -80,9 +91,10 @@ def _fit(args) -> int:
     import numpy as np
 
     from .body import GLOBAL_DOFS, joint_angles
-    from .io import load_sequence
+    from .io import check_output, load_sequence
     from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
 
+    args.out = check_output(args.out, args.motion)
     sequences, names = [], []
     for path in args.motion:
         seq = load_sequence(path)
@@ -118,10 +130,11 @@ def _plot_latent(args) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)  # models are saved in float64
+    from .io import check_output
     from .manifold import load_model, plot_latent
 
+    out = check_output(args.out or os.path.splitext(args.model)[0] + "_latent.png", [args.model])
     model, header = load_model(args.model)
-    out = args.out or os.path.splitext(args.model)[0] + "_latent.png"
     plot_latent(model, out, sequence_starts=header["sequence_starts"], labels=header["extra"].get("sequences"))
     print(f"wrote {out}")
     return 0
@@ -142,6 +155,12 @@ def _experiment(args) -> int:
         calibrate_shape=args.calibrate_shape, resolution=args.resolution, refine_steps=args.refine_steps,
         velocity=args.velocity, manifold=args.manifold,
     )
+    from .io import check_folder
+
+    inputs = [*args.train, *args.validation, *args.test]
+    if any(os.path.exists(p) and os.path.exists(args.out) and os.path.samefile(p, args.out) for p in inputs):
+        raise ValueError(f"{args.out}: is one of the input files; --out names the output folder")
+    check_folder(args.out)
     train, train_names = _load_sequences(args.train)
     validation, validation_names = _load_sequences(args.validation)
     test, test_names = _load_sequences(args.test)
@@ -160,11 +179,12 @@ def _track(args) -> int:
     import numpy as np
 
     from .evaluation import mean_joint_error_mm
-    from .io import load_sequence, save_sequence
+    from .io import check_output, load_sequence, save_sequence
     from .manifold import load_model
     from .tracking import get_tracker, track_sequence
 
     get_tracker(args.method)
+    args.out = check_output(args.out, [args.test, args.validation, args.model], suffix=".npz")
     sequence = load_sequence(args.test)
     validation = load_sequence(args.validation)
     model, header = load_model(args.model)
@@ -177,7 +197,14 @@ def _track(args) -> int:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
     out = sequence.replace(pose=poses, joints3d=joints)
     save_sequence(args.out, out)
-    print(f"wrote {args.out}: estimated pose {poses.shape} and joints3d {joints.shape}; mean ESS {float(np.mean(info.ess)):.1f}")
+    degenerate = float(np.mean(np.asarray(info.degenerate)))
+    print(f"wrote {args.out}: estimated pose {poses.shape} and joints3d {joints.shape}; mean ESS {float(np.mean(info.ess)):.1f}; "
+          f"degenerate frames {100 * degenerate:.0f} %")
+    if degenerate > args.max_degenerate:
+        print(f"jaxtrack track: error: on {100 * degenerate:.0f} % of the frames every particle's likelihood was -inf or NaN, "
+              f"so the filter ran on uniform weights (tracked blind; --max-degenerate {args.max_degenerate:g}); check that every "
+              "camera sees the person and that the silhouettes are not empty", file=sys.stderr)
+        return 3
     return 0
 
 
@@ -344,6 +371,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--velocity", action=argparse.BooleanOptionalAction,
                        help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion, or not "
                             f"(default: the tracker's own: {_velocity_defaults()})")
+    track.add_argument("--max-degenerate", type=float, default=0.0,
+                       help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
+                            "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 

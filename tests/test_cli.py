@@ -1,6 +1,7 @@
 from pathlib import Path
 
 import imageio.v3 as iio
+import jax
 import numpy as np
 import pytest
 
@@ -32,6 +33,105 @@ def test_render_reports_bad_files(tmp_path, capsys):
     np.savez(no_cameras, fps=30.0, joints3d=np.zeros((2, 15, 3)))
     assert main(["render", str(no_cameras)]) == 2
     assert "neither silhouettes nor images" in capsys.readouterr().err
+
+
+def test_commands_refuse_to_write_over_their_inputs_before_any_work(tmp_path, capsys, monkeypatch):
+    """``track T.npz --out T.npz`` used to replace the ground truth with estimates under the same
+    keys, ``fit X.npz --out X.npz`` the training data with the model: refused, by any name of
+    the same file, before anything is loaded; the inputs are left byte for byte."""
+    seq = small_scene()[2]
+    test = tmp_path / "walk.npz"
+    save_sequence(test, seq)
+    before = test.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "link.npz").symlink_to(test)
+    commands = [
+        ["track", "walk.npz", "--model", "m.eqx", "--validation", "walk.npz", "--out", "walk.npz"],
+        ["track", "walk.npz", "--model", "m.eqx", "--validation", "walk.npz", "--out", "./walk"],  # .npz is appended
+        ["fit", "walk.npz", "--out", str(tmp_path / "link.npz")],
+        ["scene", "link.npz", "walk"],
+        ["convert", "walk.npz", "walk.npz"],
+        ["render", "walk.npz", "--out", "walk", "--estimate", "walk_sheet.png"],
+    ]
+    for command in commands:
+        assert main(command) == 2, command
+        err = capsys.readouterr().err
+        assert "is also an input of this command; refusing to write over it" in err, (command, err)
+    assert test.read_bytes() == before
+    # An output whose folder is a file, or that is a folder, is refused first too.
+    assert main(["fit", "walk.npz", "--out", "walk.npz/model.eqx"]) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err
+    assert main(["fit", "walk.npz", "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    assert main(["experiment", "--train", "walk.npz", "--validation", "walk.npz", "--test", "walk.npz", "--out", "link.npz"]) == 2
+    assert "is one of the input files" in capsys.readouterr().err
+
+
+def test_a_camera_that_cannot_see_the_person_is_refused_before_tracking():
+    """One camera turned to face away, or moved so the body is outside its image: the filter
+    would run on uniform weights in that view; refused, naming the camera, before any jit."""
+    from jaxtrack.tracking import prepare_test
+
+    seq = small_scene()[2]
+    R, t = np.asarray(seq.camera_R).copy(), np.asarray(seq.camera_t).copy()
+    turned = R.copy()
+    turned[1] = np.diag([-1.0, 1.0, -1.0]) @ R[1]  # half a turn about the camera's y axis: the body is behind it
+    t_turned = t.copy()
+    t_turned[1] = np.diag([-1.0, 1.0, -1.0]) @ t[1]
+    with pytest.raises(ValueError, match=r"camera 'C2' is behind walk's initial pose \(frame 0\)"):
+        prepare_test(seq.replace(camera_R=turned, camera_t=t_turned), "walk", key=jax.random.key(0))
+    shifted = t.copy()
+    shifted[2, 0] += 50.0  # 50 m sideways in camera coordinates: in front, but outside the image
+    with pytest.raises(ValueError, match=r"camera 'C3' does not see walk's initial pose \(frame 0\): all 15 points project"):
+        prepare_test(seq.replace(camera_t=shifted), "walk", key=jax.random.key(0))
+
+
+def test_track_exits_non_zero_when_it_tracked_blind(tmp_path, capsys):
+    """A tracker whose every particle scores -inf: the estimates are written, the degenerate
+    fraction printed, and the command exits 3 with the reason (0 with --max-degenerate 1)."""
+    seq = small_scene(num_frames=4)[2]
+    test = tmp_path / "walk.npz"
+    save_sequence(test, seq)
+    plugin = tmp_path / "blind_tracker.py"
+    plugin.write_text(
+        "import jax.numpy as jnp\n"
+        "from jaxtrack.dynamics import fit_pose_random_walk\n"
+        "from jaxtrack.filters import SIR\n"
+        "from jaxtrack.likelihood import as_likelihood\n"
+        "from jaxtrack.tracking import TrackerRecipe, register_tracker\n"
+        "blind = as_likelihood(lambda poses, observation: jnp.full(poses.shape[0], -jnp.inf, poses.dtype))\n"
+        "register_tracker(TrackerRecipe('blind', 'Blind', 'every particle scores -inf',\n"
+        "    fit=lambda key, motion: fit_pose_random_walk(list(motion.validation)),\n"
+        "    build=lambda dynamics, likelihood, budget: SIR(dynamics, blind, 8)), replace=True)\n"
+    )
+    model = tmp_path / "m.eqx"
+    assert main(["fit", str(test), "--out", str(model), "--steps", "1"]) == 0
+    args = ["track", str(test), "--plugin", str(plugin), "--method", "blind", "--model", str(model), "--validation", str(test),
+            "--budget", "8", "--out", str(tmp_path / "est")]
+    assert main(args) == 3
+    captured = capsys.readouterr()
+    assert "degenerate frames 100 %" in captured.out and "tracked blind" in captured.err
+    assert np.all(np.isfinite(load_sequence(tmp_path / "est.npz").pose))  # written, and finite
+    assert main([*args, "--max-degenerate", "1"]) == 0
+
+
+def test_writes_are_atomic_and_name_the_file_written(tmp_path):
+    from jaxtrack.io import atomic_write, check_output, output_file
+
+    seq = small_scene()[2]
+    assert save_sequence(tmp_path / "a", seq) == str(tmp_path / "a.npz")
+    assert output_file("x", ".npz") == "x.npz" and output_file("x.npz", ".npz") == "x.npz"
+    assert check_output(tmp_path / "new" / "b", suffix=".npz") == str(tmp_path / "new" / "b.npz")
+    assert (tmp_path / "new").is_dir()
+    target = tmp_path / "a.npz"
+    before = target.read_bytes()
+    with pytest.raises(RuntimeError, match="interrupted"):
+        with atomic_write(target) as handle:
+            handle.write(b"half a file")
+            raise RuntimeError("interrupted")
+    assert target.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npz", "new"]  # no temporary left behind
+    np.testing.assert_array_equal(load_sequence(target).silhouettes, seq.silhouettes)
 
 
 @pytest.mark.slow

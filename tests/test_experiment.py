@@ -52,6 +52,27 @@ def test_bad_experiment_inputs(sequences):
         run_experiment(train, validation, train[:1], ExperimentConfig(runs=1), progress=False)
 
 
+def test_bad_inputs_fail_before_any_fitting(sequences, monkeypatch):
+    """Frame rates that differ, and a second test file whose silhouettes are empty, used to be
+    found after minutes of fitting and tracking (or never): now before the first fit."""
+    import jaxtrack.experiment._run as run_module
+
+    train, validation, test = sequences
+
+    def no_fitting(*args, **kwargs):
+        raise AssertionError("fitting started before the inputs were checked")
+
+    monkeypatch.setattr(run_module, "fit_manifold", no_fitting)
+    monkeypatch.setattr(run_module, "fit_tracker", no_fitting)
+    config = ExperimentConfig(runs=1, methods=("sir", "mrpf"))
+    slow = validation[0].replace(fps=validation[0].fps / 2)
+    with pytest.raises(ValueError, match=r"validation0 is at \d+ Hz but train0 at \d+ Hz"):
+        run_experiment(train, [slow], test, config, progress=False)
+    empty = test[0].replace(silhouettes=np.zeros_like(test[0].silhouettes))
+    with pytest.raises(ValueError, match="test1"):
+        run_experiment(train, validation, [test[0], empty], config, progress=False)
+
+
 def test_track_refuses_a_model_from_another_skeleton(sequences):
     from jaxtrack.manifold import make_bc_gplvm
 
@@ -79,9 +100,11 @@ def test_experiment_end_to_end(sequences, tmp_path):
     assert table.startswith("| Sequence | SIR | APF | MRPF | GPAPF | LatentPF |") and "walk.npz" in table
     assert (tmp_path / "error_curves.png").stat().st_size > 1000
     assert list(tmp_path.glob("walk_*.gif"))
-    assert results["manifold"]["class"] == "BCGPLVM"
-    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"bc-gplvm": "BCGPLVM", "gpdm": "GPDM"}
+    # By default every manifold tracker runs on one GPDM, and the one-layer ones carry a velocity.
+    assert results["manifold"]["class"] == "GPDM"
+    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"gpdm": "GPDM"}
     assert results["dynamics"]["gpapf"]["0.class"] == "GPDMLatentDynamics"
+    assert set(results["velocity"]) == {"mrpf", "latentpf"} and results["velocity"]["mrpf"]["entries"] == 6
 
 
 @pytest.mark.slow

@@ -46,6 +46,8 @@ def test_file_written_with_numpy_alone_loads(tmp_path):
         ({"silhouettes": np.full((4, 8, 30, 40), 3, np.uint8)}, "0/1 or 0/255"),
         ({"silhouettes": np.zeros((4, 8, 30, 41), np.uint8)}, "image_size says 40x30"),
         ({"parents": np.array([0] * 15)}, "exactly one root"),
+        ({"parents": np.array([-1, 2, 1] + list(range(3, 15)))}, r"joint 1's chain of parents never reaches the root \(a cycle\)"),
+        ({"skeleton_offsets": np.zeros((15, 3))}, r"key 'skeleton_offsets': joint\(s\) \[1, 2, 3, 4, 5\] sit on their parent"),
         ({"joint_names": np.arange(15)}, "key 'joint_names': must be a 1-D array of strings"),
         ({"camera_K": None}, "key 'camera_K': is required with the other camera keys"),
     ],
@@ -68,9 +70,21 @@ def test_nan_is_reported_with_its_index(scene, tmp_path):
 
 def test_not_an_npz_and_unknown_keys(tmp_path):
     bad = tmp_path / "bad.npz"
-    bad.write_text("hello")
+    bad.write_text("hello")  # was reported as "contains pickled (object) data"
+    with pytest.raises(SequenceFileError, match=r"bad\.npz: not a \.npz sequence file \(an \.npz is a zip archive; this file starts"):
+        load_sequence(bad)
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    (tmp_path / "array.npy").rename(bad)  # a .npy renamed .npz used to end in a TypeError
+    with pytest.raises(SequenceFileError, match=r"is a single NumPy array \(\.npy\)"):
+        load_sequence(bad)
+    bad.write_bytes(b"PK\x03\x04 and then nothing")
     with pytest.raises(SequenceFileError, match=r"not a readable \.npz"):
         load_sequence(bad)
+    np.savez(bad, fps=30.0, joints3d=np.zeros((0, 15, 3)))  # zero frames used to end in an IndexError later
+    with pytest.raises(SequenceFileError, match=r"key 'joints3d': has no frames"):
+        load_sequence(bad)
+    with pytest.raises(SequenceFileError, match="is a folder"):
+        load_sequence(tmp_path)
     with pytest.raises(FileNotFoundError):
         load_sequence(tmp_path / "missing.npz")
     extra = tmp_path / "extra.npz"
@@ -88,3 +102,26 @@ def test_save_validates_first_and_loses_nothing(scene, tmp_path):
     assert path.read_bytes() == before
     seq = Sequence.create(fps=30.0, joints3d=np.zeros((2, 15, 3)))
     assert seq.num_frames == 2
+
+
+def test_pose_columns_are_matched_by_name(scene, tmp_path):
+    """A file whose pose columns are in another (named) order used to be read by position."""
+    standard = tmp_path / "standard.npz"
+    save_sequence(standard, scene)
+    fields = dict(np.load(standard))
+    perm = np.random.default_rng(0).permutation(fields["pose"].shape[1])
+    fields["pose"], fields["pose_layout"] = fields["pose"][:, perm], fields["pose_layout"][perm]
+    shuffled = tmp_path / "shuffled.npz"
+    np.savez(shuffled, **fields)
+    back = load_sequence(shuffled)
+    np.testing.assert_array_equal(back.pose, load_sequence(standard).pose)
+    np.testing.assert_array_equal(back.pose_layout, load_sequence(standard).pose_layout)
+    fields["pose_layout"] = fields["pose_layout"].copy()
+    fields["pose_layout"][0] = "tail_wag"
+    np.savez(shuffled, **fields)
+    with pytest.raises(SequenceFileError, match=r"key 'pose_layout': is not the HumanEva pose layout: unknown entries \['tail_wag'\]"):
+        load_sequence(shuffled)
+    fields["pose_layout"][0] = fields["pose_layout"][1]
+    np.savez(shuffled, **fields)
+    with pytest.raises(SequenceFileError, match=r"names \[.*\] more than once"):
+        load_sequence(shuffled)

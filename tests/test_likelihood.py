@@ -156,6 +156,10 @@ def test_silhouette_validation(scene):
     empty[2, 5] = 0
     with pytest.raises(ValueError, match="empty silhouette in view 2, frame 5"):
         check_silhouettes(empty, rig)
+    full = sil.copy()
+    full[1, 3] = 1
+    with pytest.raises(ValueError, match="silhouette in view 1, frame 3 is all foreground"):
+        check_silhouettes(full, rig)
     with pytest.raises(ValueError, match="0/1 or 0/255"):
         check_silhouettes(sil * 7, rig)
     with pytest.raises(ValueError, match="3 views, the camera rig has 4"):

@@ -1,3 +1,5 @@
+import json
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -173,13 +175,34 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
         np.testing.assert_allclose(predict(back, z)[0], predict(model, z)[0])
     with pytest.raises(ModelFileError, match="holds a GPDM, but a BCGPLVM is needed"):
         load_model(tmp_path / "GPDM.eqx", expected_class="BCGPLVM")
-    text = (tmp_path / "GPLVM.eqx").read_bytes().replace(b'"version": 1', b'"version": 9', 1)
+    text = (tmp_path / "GPLVM.eqx").read_bytes().replace(b'"version": 2', b'"version": 9', 1)
     (tmp_path / "v9.eqx").write_bytes(text)
     with pytest.raises(ModelFileError, match="format version 9"):
         load_model(tmp_path / "v9.eqx")
     (tmp_path / "junk.eqx").write_bytes(b"\x00\x01garbage")
     with pytest.raises(ModelFileError, match="not a jaxtrack model file"):
         load_model(tmp_path / "junk.eqx")
+    # Truncated, extended, or edited in place: reported as such, with the file's name.
+    good = (tmp_path / "BCGPLVM.eqx").read_bytes()
+    header_end = good.index(b"\n") + 1
+    cases = {
+        "cut.eqx": (good[:-100], r"cut\.eqx: truncated: the arrays take \d+ bytes, the header says \d+"),
+        "long.eqx": (good + b"\x00", r"long\.eqx: edited: the arrays take"),
+        "flip.eqx": (good[:-9] + bytes([good[-9] ^ 0xFF]) + good[-8:], r"flip\.eqx: edited or corrupted: the arrays' SHA-256"),
+        "header.eqx": (good[:header_end].replace(b'"latent_dim": 2', b'"latent_dim": 3') + good[header_end:],
+                       r"header\.eqx: the header does not describe the arrays"),
+    }
+    for name, (data, message) in cases.items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(ModelFileError, match=message):
+            load_model(tmp_path / name)
+    # A version-1 file (no payload length or checksum) still loads.
+    v1 = good[:header_end]
+    fields = json.loads(v1)
+    fields.update(version=1)
+    del fields["payload_bytes"], fields["payload_sha256"]
+    (tmp_path / "v1.eqx").write_bytes((json.dumps(fields) + "\n").encode() + good[header_end:])
+    assert type(load_model(tmp_path / "v1.eqx")[0]).__name__ == "BCGPLVM"
 
 
 def test_inverse_mapping(walk_jog):
@@ -331,3 +354,27 @@ def test_gpdm_objective_is_bounded_along_its_scale_and_constant_entries(walk_jog
     np.testing.assert_allclose(float(scaled.objective()), base - np.log(s), rtol=1e-9)
     still = eqx.tree_at(lambda m: m.log_w, model, model.log_w.at[-1].set(20.0))
     np.testing.assert_allclose(float(still.objective()), base, rtol=1e-12)
+
+
+def test_fit_takes_exactly_the_steps_asked_and_never_returns_nans():
+    """``--steps 30`` used to run 50 (a whole chunk); an objective that turns NaN part-way
+    leaves the parameters of the last finite chunk."""
+    Y = generate_motion("walk", "S1", num_frames=40, fps=30.0, key=jax.random.key(2), dtype=jnp.float64).pose[:, 6:]
+    _, info = fit_model(make_gplvm(np.asarray(Y), 2), max_steps=30, chunk=50, tolerance=0.0)
+    assert info.steps == 30 and info.trace.shape == (30,)
+
+    class Cliff(eqx.Module):
+        x: jax.Array
+
+        def trainable(self):
+            return jax.tree_util.tree_map(lambda _: True, self)
+
+        def objective(self):  # climbs until x = 3, then NaN
+            return jnp.where(self.x[0] < 3.0, self.x[0] - 0.1 * self.x[0] ** 2 / 9, jnp.nan)
+
+    fitted, info = fit_model(Cliff(jnp.zeros(1)), max_steps=200, chunk=5, tolerance=0.0)
+    assert np.isfinite(float(fitted.x[0])) and np.isfinite(info.objective) and np.all(np.isfinite(info.trace))
+    assert info.steps < 200 and info.steps % 5 == 0
+    with pytest.raises(ValueError, match="max_steps must be a positive integer"):
+        fit_model(Cliff(jnp.zeros(1)), max_steps=0)
+

@@ -1,4 +1,5 @@
 import os
+import time
 
 import jax
 import jax.numpy as jnp
@@ -123,6 +124,59 @@ def test_asf_amc_forward_kinematics_by_hand(asf_amc):
     assert load_asf_amc(asf, amc, fps=60.0).positions[0, 1, 2] == pytest.approx(2 * 0.0254)
 
 
+def test_amc_units_frame_numbers_and_asf_bones_are_checked(asf_amc, tmp_path):
+    """AMC ``:RADIANS`` used to be ignored; a repeated frame number, an ASF ``direction 0 0 0``
+    and ``length 0`` were accepted or failed later without a line."""
+    asf, amc = asf_amc
+    degrees = load_asf_amc(asf, amc, fps=60.0)
+    text = amc.read_text()
+    lines = text.splitlines()
+    radians_lines = [":FULLY-SPECIFIED", ":RADIANS"]
+    for line in lines[2:]:
+        words = line.split()
+        if words[0] == "root":  # TX TY TZ stay, RX RY RZ in radians
+            words[4:] = [str(float(np.radians(float(v)))) for v in words[4:]]
+        elif words[0] in ("up", "side"):
+            words[1:] = [str(float(np.radians(float(v)))) for v in words[1:]]
+        radians_lines.append(" ".join(words))
+    radians = tmp_path / "radians.amc"
+    radians.write_text("\n".join(radians_lines) + "\n")
+    np.testing.assert_allclose(load_asf_amc(asf, radians, fps=60.0).positions, degrees.positions, atol=1e-12)
+    repeated = tmp_path / "repeated.amc"
+    repeated.write_text(text.replace("\n2\n", "\n1\n", 1))
+    with pytest.raises(MotionFileError, match=r"repeated\.amc:\d+: frame number 1 where 2 was expected"):
+        load_asf_amc(asf, repeated, fps=60.0)
+    bad = tmp_path / "bad.asf"
+    for old, new, message in (("direction 0 1 0", "direction 0 0 0", r"bad\.asf:\d+: direction 0 0 0"),
+                              ("length 2.0", "length 0", r"bad\.asf:\d+: length 0: a bone's length must be positive")):
+        bad.write_text(ASF.replace(old, new))
+        with pytest.raises(MotionFileError, match=message):
+            read_asf(bad)
+
+
+@pytest.mark.parametrize("frame_time", ["inf", "nan", "1e-300", "0", "-0.01", "1e6"])
+def test_bvh_frame_time_out_of_range_is_refused_with_its_line(tmp_path, frame_time):
+    """``Frame Time: 1e-300`` used to write a 1e300 Hz file; ``inf`` was reported as "0.0 and 0.0"."""
+    path = tmp_path / "t.bvh"
+    write_bvh(path, [[10, 90, -5, 0, 0, 0, 0, 0, 0]], frame_time=frame_time)
+    with pytest.raises(MotionFileError, match=rf"t\.bvh:\d+: Frame Time {frame_time}: must be a number of seconds between"):
+        load_bvh(path)
+
+
+def test_non_finite_values_in_motion_files_are_refused_with_their_line(asf_amc, tmp_path):
+    asf, amc = asf_amc
+    amc.write_text(amc.read_text().replace("side 90", "side nan"))
+    with pytest.raises(MotionFileError, match=r"t\.amc:\d+: bone 'side': non-finite value in 'nan'"):
+        load_asf_amc(asf, amc, fps=60.0)
+    path = tmp_path / "t.bvh"
+    write_bvh(path, [[10, 90, -5, 0, 0, 0, 0, 0, 0], [10, 90, -5, 0, float("inf"), 0, 0, 0, 0]])
+    with pytest.raises(MotionFileError, match=r"t\.bvh:\d+: non-finite value 'inf' \(channel 5\)"):
+        load_bvh(path)
+    mapping = tmp_path / "map.json"
+    mapping.write_text('{"head": "Head",\n "neck": }')
+    assert main(["convert", str(path), str(tmp_path / "out.npz"), "--mapping", str(mapping)]) == 2
+
+
 def test_bvh_written_and_read_back(tmp_path):
     path = tmp_path / "t.bvh"
     frames = [[10, 90, -5, 0, 0, 0, 0, 0, 0], [10, 90, -5, 90, 0, 0, 0, 90, 0]]
@@ -179,6 +233,42 @@ def test_bad_amc_and_asf_name_file_and_line(asf_amc, tmp_path):
     bad_asf.write_text(ASF.split("  end\n  begin\n     id 2")[0])
     with pytest.raises(MotionFileError, match=r"bad\.asf:\d+: bone block not closed"):
         read_asf(bad_asf)
+
+
+def test_asf_hierarchy_cycles_and_depth_end_quickly(tmp_path):
+    """A hierarchy that is not a tree (a bone with two parents, a cycle detached from the root,
+    the root given a parent) is refused with its line; the parse used to loop for ever. A
+    chain of 3000 bones parses in well under a second."""
+    bad = tmp_path / "cycle.asf"
+    cases = [
+        ("    up side\n", "    up side\n    side up\n", r"cycle\.asf:37: hierarchy gives bone 'up' a second parent \(first on line 35\)"),
+        ("    up side\n", "    up side\n    side root\n", r"cycle\.asf:37: hierarchy names unknown bone\(s\) \['root'\]"),
+        ("    root up\n    up side\n", "    root up\n    side side\n", r"cycle\.asf:36: hierarchy gives 'side' a parent it cannot have"),
+    ]
+    for old, new, message in cases:
+        bad.write_text(ASF.replace(old, new))
+        with pytest.raises(MotionFileError, match=message):
+            read_asf(bad)
+    # A two-bone cycle with no path from the root: each bone has one parent, none is reached.
+    three = ASF.replace(":hierarchy", "  begin\n     id 3\n     name loose\n     direction 1 0 0\n     length 1.0\n"
+                                      "     axis 0 0 0 XYZ\n  end\n:hierarchy")
+    bad.write_text(three.replace("    up side\n", "    side loose\n    loose side\n").replace("    root up\n", "    root up\n"))
+    with pytest.raises(MotionFileError, match=r"(second parent|not connected to the root)"):
+        read_asf(bad)
+    bad.write_text(three.replace("    up side\n", "    up side\n    loose loose\n"))
+    with pytest.raises(MotionFileError, match="parent it cannot have"):
+        read_asf(bad)
+    # Deep: root -> b0 -> b1 -> ... -> b2999.
+    bones = "".join(f"  begin\n     id {i + 1}\n     name b{i}\n     direction 0 1 0\n     length 0.01\n     axis 0 0 0 XYZ\n  end\n"
+                    for i in range(3000))
+    links = "    root b0\n" + "".join(f"    b{i} b{i + 1}\n" for i in range(2999))
+    deep = ASF.split(":bonedata")[0] + ":bonedata\n" + bones + ":hierarchy\n  begin\n" + links + "  end\n"
+    path = tmp_path / "deep.asf"
+    path.write_text(deep)
+    start = time.perf_counter()
+    skeleton = read_asf(path)
+    assert len(skeleton.order()) == 3001 and skeleton.order()[-1] == ("b2999", "b2998")
+    assert time.perf_counter() - start < 2.0
 
 
 def test_resample():

@@ -3,6 +3,7 @@
 from ._pinhole import NEAR_PLANE as NEAR_PLANE
 from ._pinhole import CameraRig as CameraRig
 from ._pinhole import check_in_front as check_in_front
+from ._pinhole import check_in_view as check_in_view
 from ._pinhole import decompose_projection_matrix as decompose_projection_matrix
 from ._pinhole import default_rig as default_rig
 from ._pinhole import distort as distort

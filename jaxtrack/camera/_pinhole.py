@@ -313,6 +313,21 @@ def check_in_front(rig: CameraRig, points, what: str = "the body") -> None:
         )
 
 
+def check_in_view(rig: CameraRig, points, what: str = "the body") -> None:
+    """Raise ``ValueError`` naming the camera when ``points`` (…, 3) are behind it
+    (``check_in_front``) or all project outside its image: a view that cannot see the body
+    gives every particle the same likelihood, and the filter would track blind."""
+    check_in_front(rig, points, what)
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    uv = np.asarray(project_points(rig, jnp.asarray(points, rig.K.dtype))[0], np.float64)  # (N, views, 2)
+    size = np.asarray(rig.image_size, np.float64)  # (views, 2): width, height
+    inside = np.all((uv >= 0) & (uv <= size[None]), axis=-1)  # (N, views)
+    for c in np.flatnonzero(~inside.any(axis=0)):
+        w, h = (int(v) for v in size[c])
+        raise ValueError(f"camera {rig.names[c]!r} does not see {what}: all {len(points)} points project outside its "
+                         f"{w}x{h} image")
+
+
 def focal_lengths(rig: CameraRig) -> Float[Array, " views"]:
     """Mean focal length (fx + fy) / 2 of each camera, pixels."""
     return 0.5 * (rig.K[:, 0, 0] + rig.K[:, 1, 1])

@@ -23,6 +23,7 @@ from ..likelihood import suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
     build_tracker,
+    check_frame_rates,
     check_test_sequence,
     fit_manifold,
     fit_tracker,
@@ -109,6 +110,12 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     ik_key = jax.random.key(config.seed)
     for seq, name in zip(test, test_names):
         check_test_sequence(seq, name)
+    check_frame_rates([*train, *validation, *test], [*train_names, *validation_names, *test_names])
+    # Every test scene is built (and checked: silhouettes, cameras that see the person) before
+    # any fitting, so a bad last file fails in seconds, not after the fits and the first tracks.
+    window = shared_window(test, config.frames, config.resolution)
+    scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
+                           calibrate=config.calibrate_shape, resolution=config.resolution) for seq, name in zip(test, test_names)]
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
@@ -134,10 +141,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = config.tracking_budget
-    window = shared_window(test, config.frames, config.resolution)
-    for seq, name in zip(test, test_names):
-        scene = prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
-                             calibrate=config.calibrate_shape, resolution=config.resolution)
+    for scene, name in zip(scenes, test_names):
         if scene.shape_calibration is not None:
             report = scene.shape_calibration
             results["shape_calibration"][name] = {
@@ -183,6 +187,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             results["estimates"].setdefault(name, {})[method] = estimates
             say(f"{name} {method_label(method):>8}: {np.mean(errors):6.1f} ({np.std(errors):4.1f}) mm over {config.runs} runs, "
                 f"{per_method[method]['frames_per_second']:.1f} frames/s")
+            if np.mean(degenerate) > 0:  # printed whatever ``progress`` says: these numbers are not to be trusted
+                print(f"warning: {name} {method_label(method)}: on {100 * np.mean(degenerate):.0f} % of the frames every particle's "
+                      "likelihood was -inf or NaN (the filter tracked blind on uniform weights)")
         results["sequences"][name] = per_method
     if out_dir is not None:
         write_outputs(results, test, test_names, out_dir, animations=animations)

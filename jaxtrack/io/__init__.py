@@ -13,6 +13,11 @@ from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
 from ._mocap import MotionCapture as MotionCapture
 from ._mocap import MotionFileError as MotionFileError
+from ._output import OutputPathError as OutputPathError
+from ._output import atomic_write as atomic_write
+from ._output import check_folder as check_folder
+from ._output import check_output as check_output
+from ._output import output_file as output_file
 from ._sequence import ARRAY_KEYS as ARRAY_KEYS
 from ._sequence import Sequence as Sequence
 from ._sequence import SequenceFileError as SequenceFileError

@@ -68,9 +68,12 @@ def _floats(path, number, words, count, what):
     if len(words) != count:
         raise MotionFileError(path, number, f"{what}: expected {count} numbers, got {len(words)}")
     try:
-        return np.array([float(w) for w in words])
+        values = np.array([float(w) for w in words])
     except ValueError:
         raise MotionFileError(path, number, f"{what}: non-numeric value in {' '.join(words)!r}") from None
+    if not np.all(np.isfinite(values)):
+        raise MotionFileError(path, number, f"{what}: non-finite value in {' '.join(words)!r}")
+    return values
 
 
 def read_asf(path: str | os.PathLike) -> AsfSkeleton:
@@ -83,6 +86,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
     root = {"order": ("TX", "TY", "TZ", "RX", "RY", "RZ"), "axis": "XYZ", "position": np.zeros(3), "orientation": np.zeros(3)}
     bones: dict[str, AsfBone] = {}
     children: dict[str, tuple[str, ...]] = {}
+    parent_line: dict[str, int] = {}  # each bone's one parent, by the line that named it
     current: dict | None = None
     current_line = 0
     in_limits = False
@@ -137,9 +141,13 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
             elif key == "direction":
                 direction = _floats(path, number, words[1:], 3, "direction")
                 norm = np.linalg.norm(direction)
-                current["direction"] = direction / norm if norm > 0 else direction
+                if not norm > 0:
+                    raise MotionFileError(path, number, "direction 0 0 0: a bone needs a direction")
+                current["direction"] = direction / norm
             elif key == "length":
                 current["length"] = float(_floats(path, number, words[1:], 1, "length")[0])
+                if not current["length"] > 0:
+                    raise MotionFileError(path, number, f"length {current['length']:g}: a bone's length must be positive")
             elif key == "axis":
                 current["axis"] = _floats(path, number, words[1:4], 3, "axis")
                 if len(words) != 5:
@@ -166,6 +174,13 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
             unknown = [w for w in words[1:] if w not in bones]
             if unknown:
                 raise MotionFileError(path, number, f"hierarchy names unknown bone(s) {unknown}")
+            for child in words[1:]:
+                if child in parent_line:
+                    raise MotionFileError(path, number, f"hierarchy gives bone {child!r} a second parent (first on line "
+                                                        f"{parent_line[child]}): a skeleton is a tree")
+                if child == parent or child == _ROOT:
+                    raise MotionFileError(path, number, f"hierarchy gives {child!r} a parent it cannot have ({parent!r})")
+                parent_line[child] = number
             children[parent] = children.get(parent, ()) + tuple(words[1:])
     if current is not None:
         raise MotionFileError(path, current_line, "bone block not closed with 'end' (truncated file?)")
@@ -173,6 +188,15 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
         raise MotionFileError(path, None, "no :bonedata found")
     if _ROOT not in children:
         raise MotionFileError(path, None, "no :hierarchy entry for the root")
+    reached, stack = set(), [_ROOT]
+    while stack:  # each bone has one parent, so this visits every bone reachable from the root once
+        name = stack.pop()
+        reached.add(name)
+        stack.extend(children.get(name, ()))
+    detached = [b for b in parent_line if b not in reached]
+    if detached:
+        raise MotionFileError(path, parent_line[detached[0]], f"hierarchy bone(s) {detached} are not connected to the root "
+                                                              "(a cycle?)")
     return AsfSkeleton(
         path=path,
         length_unit=length_unit,
@@ -197,7 +221,8 @@ def read_amc(path: str | os.PathLike, skeleton: AsfSkeleton) -> tuple[list[str],
     """Parse an AMC motion file against its skeleton.
 
     Returns ``(channels, values)``: channel names ``"bone.dof"`` and a (T, channels) array in
-    file units (degrees unless the file says ``:RADIANS``).
+    the ASF's units (``:units angle``); an AMC that declares the other angle unit (``:RADIANS``
+    or ``:DEGREES``) has its rotations converted. Frames must be numbered consecutively.
     """
     path = os.fspath(path)
     if not os.path.exists(path):
@@ -209,6 +234,8 @@ def read_amc(path: str | os.PathLike, skeleton: AsfSkeleton) -> tuple[list[str],
     seen: set[str] = set()
     current = None
     frame_line = 0
+    radians = None  # the file's own :RADIANS / :DEGREES, if it says
+    first_number = None
 
     def close(number):
         if current is None:
@@ -220,10 +247,20 @@ def read_amc(path: str | os.PathLike, skeleton: AsfSkeleton) -> tuple[list[str],
 
     for number, line in _lines(path):
         if line.startswith(":"):
+            keyword = line.split()[0].upper()
+            if keyword in (":RADIANS", ":DEGREES"):
+                if current is not None:
+                    raise MotionFileError(path, number, f"{keyword} after the first frame")
+                radians = keyword == ":RADIANS"
             continue
         words = line.split()
         if len(words) == 1 and words[0].isdigit():
             close(number)
+            frame_number = int(words[0])
+            first_number = frame_number if first_number is None else first_number
+            if frame_number != first_number + len(frames):
+                raise MotionFileError(path, number, f"frame number {frame_number} where {first_number + len(frames)} was expected "
+                                                    "(frames must be numbered consecutively; a repeated or missing frame?)")
             current, seen, frame_line = np.zeros(len(layout)), set(), number
             continue
         if current is None:
@@ -239,7 +276,13 @@ def read_amc(path: str | os.PathLike, skeleton: AsfSkeleton) -> tuple[list[str],
     close(None)
     if not frames:
         raise MotionFileError(path, None, "no frames found")
-    return [f"{n}.{d}" for n, d in layout], np.stack(frames)
+    values = np.stack(frames)
+    if radians is not None and radians == skeleton.degrees:
+        # The AMC's angles are in the other unit than its ASF's: convert them to the ASF's,
+        # which is what the values are read in (translations and lengths are left alone).
+        rotation = np.array([d.lower().startswith("r") for _, d in layout])
+        values[:, rotation] = np.degrees(values[:, rotation]) if radians else np.radians(values[:, rotation])
+    return [f"{n}.{d}" for n, d in layout], values
 
 
 def load_asf_amc(

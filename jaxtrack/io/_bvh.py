@@ -19,6 +19,9 @@ from ._mocap import Y_UP_TO_Z_UP, MotionCapture, MotionFileError, euler_matrix
 
 _CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 
+MIN_FRAME_TIME = 1e-4  # seconds: 10 kHz, beyond any motion capture
+MAX_FRAME_TIME = 10.0  # seconds: slower than any motion capture
+
 
 def read_bvh(path: str | os.PathLike):
     """Parse a BVH file.
@@ -87,6 +90,8 @@ def read_bvh(path: str | os.PathLike):
                 value = np.array([float(w) for w in words[1:]])
             except ValueError:
                 fail(number, f"non-numeric OFFSET {' '.join(words[1:])!r}")
+            if not np.all(np.isfinite(value)):
+                fail(number, f"non-finite OFFSET {' '.join(words[1:])!r}")
             if in_end_site == 0:
                 if not stack:
                     fail(number, "OFFSET outside a joint")
@@ -136,8 +141,9 @@ def read_bvh(path: str | os.PathLike):
         frame_time = float(time_text)
     except ValueError:
         raise MotionFileError(path, number, f"non-numeric frame time {time_text!r}") from None
-    if not frame_time > 0:
-        raise MotionFileError(path, number, f"frame time must be positive, got {frame_time}")
+    if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:  # also NaN and inf
+        raise MotionFileError(path, number, f"Frame Time {time_text}: must be a number of seconds between {MIN_FRAME_TIME:g} "
+                                            f"({1 / MIN_FRAME_TIME:g} Hz) and {MAX_FRAME_TIME:g}")
     values = []
     for k in range(i, len(lines)):
         words = lines[k].split()
@@ -146,10 +152,14 @@ def read_bvh(path: str | os.PathLike):
         if len(words) != len(channels):
             raise MotionFileError(path, k + 1, f"frame has {len(words)} values, the hierarchy declares {len(channels)} channels")
         try:
-            values.append([float(w) for w in words])
+            row = [float(w) for w in words]
         except ValueError:
             bad = next(w for w in words if not _is_float(w))
             raise MotionFileError(path, k + 1, f"non-numeric value {bad!r}") from None
+        if not np.all(np.isfinite(row)):
+            bad = next(w for w, v in zip(words, row) if not np.isfinite(v))
+            raise MotionFileError(path, k + 1, f"non-finite value {bad!r} (channel {int(np.argmin(np.isfinite(row))) + 1})")
+        values.append(row)
     if len(values) != num_frames:
         raise MotionFileError(path, len(lines), f"header says {num_frames} frames, found {len(values)} (truncated file?)")
     return names, parents, np.stack(offsets), channels, frame_time, np.array(values).reshape(num_frames, len(channels))

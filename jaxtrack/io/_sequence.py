@@ -31,11 +31,14 @@ Writing one from another tool::
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import zipfile
 from collections.abc import Mapping
 
 import numpy as np
+
+from ._output import atomic_write, output_file
 
 ARRAY_KEYS = (
     "joint_names",
@@ -201,8 +204,16 @@ def load_sequence(path: str | os.PathLike) -> Sequence:
     path = os.fspath(path)
     if not os.path.exists(path):
         raise FileNotFoundError(f"no sequence file at {path!r}")
+    if os.path.isdir(path):
+        raise SequenceFileError(f"{path}: is a folder, not a sequence file")
+    with open(path, "rb") as handle:
+        magic = handle.read(6)
+    if magic.startswith(b"\x93NUMPY"):
+        raise SequenceFileError(f"{path}: is a single NumPy array (.npy), not a .npz sequence file of named keys")
+    if not magic.startswith(b"PK"):
+        raise SequenceFileError(f"{path}: not a .npz sequence file (an .npz is a zip archive; this file starts {magic!r})")
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as archive:  # the handle closes on any error
             fields = {key: archive[key] for key in archive.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as err:
         raise SequenceFileError(f"{path}: not a readable .npz sequence file ({err})") from err
@@ -212,17 +223,47 @@ def load_sequence(path: str | os.PathLike) -> Sequence:
     return _normalise_and_validate(fields, source=path)
 
 
-def save_sequence(path: str | os.PathLike, sequence: Sequence | Mapping) -> None:
-    """Validate and write a sequence (compressed npz). Writes exactly the keys that are set."""
+def save_sequence(path: str | os.PathLike, sequence: Sequence | Mapping) -> str:
+    """Validate and write a sequence (compressed npz) atomically (a temporary file renamed over
+    the target). Writes exactly the keys that are set; ``.npz`` is appended to a name without
+    it. Returns the file written."""
     if not isinstance(sequence, Sequence):
         sequence = Sequence.create(**dict(sequence))
     else:
         sequence = _normalise_and_validate(sequence.to_dict(), source="sequence")
-    path = os.fspath(path)
+    path = output_file(path, ".npz")
     directory = os.path.dirname(path)
     if directory:
         os.makedirs(directory, exist_ok=True)
-    np.savez_compressed(path, **sequence.to_dict())
+    with atomic_write(path) as handle:
+        np.savez_compressed(handle, **sequence.to_dict())
+    return path
+
+
+@functools.cache
+def _standard_layout() -> tuple[str, ...]:
+    from ..body import humaneva_skeleton
+
+    return tuple(humaneva_skeleton().pose_layout)
+
+
+def _standard_pose_order(source, pose: np.ndarray, layout: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pose columns matched to the HumanEva pose layout by name (reordered when the file names
+    the same entries in another order); a layout naming other entries is refused."""
+    names = [str(n) for n in layout]
+    standard = _standard_layout()
+    if tuple(names) == standard:
+        return pose, layout
+    if len(set(names)) != len(names):
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        _fail(source, "pose_layout", f"names {repeated} more than once")
+    if set(names) != set(standard):
+        unknown = [n for n in names if n not in standard]
+        missing = [n for n in standard if n not in names]
+        _fail(source, "pose_layout", f"is not the HumanEva pose layout: unknown entries {unknown[:5]}, missing {missing[:5]} "
+                                     "(retarget the motion onto the HumanEva skeleton with 'jaxtrack convert')")
+    order = [names.index(n) for n in standard]
+    return pose[:, order], np.array(standard)
 
 
 def _fail(source, key, message):
@@ -263,6 +304,8 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     lengths: dict[str, tuple[int, str]] = {}  # dimension name -> (size, key that set it)
 
     def agree(dim, size, key):
+        if dim == "frames" and size < 1:
+            _fail(source, key, "has no frames (an empty sequence)")
         if dim in lengths and lengths[dim][0] != size:
             _fail(source, key, f"has {size} {dim} but {lengths[dim][1]!r} has {lengths[dim][0]}")
         lengths.setdefault(dim, (size, key))
@@ -279,6 +322,12 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
         J = len(parents)
         if np.sum(parents == -1) != 1 or np.any(parents < -1) or np.any(parents >= J):
             _fail(source, "parents", "must hold exactly one root (-1) and indices of other joints")
+        for joint in range(J):  # each joint must reach the root within J steps: no cycle
+            node, steps = joint, 0
+            while node != -1 and steps <= J:
+                node, steps = int(parents[node]), steps + 1
+            if node != -1:
+                _fail(source, "parents", f"joint {joint}'s chain of parents never reaches the root (a cycle)")
         agree("joints", J, "parents")
         out["parents"] = parents.astype(np.int64)
     if "joints3d" in f:
@@ -291,6 +340,9 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     if "skeleton_offsets" in f:
         offsets = _as_float(source, "skeleton_offsets", f["skeleton_offsets"], 2, (3,))
         agree("joints", offsets.shape[0], "skeleton_offsets")
+        zero = np.flatnonzero(np.linalg.norm(offsets[1:], axis=1) < 1e-6) + 1  # the root's offset may be zero
+        if zero.size:
+            _fail(source, "skeleton_offsets", f"joint(s) {zero[:5].tolist()} sit on their parent (zero offset): a bone needs a length")
         out["skeleton_offsets"] = offsets
     if "capsule_radii" in f:
         radii = _as_float(source, "capsule_radii", f["capsule_radii"], 1)
@@ -304,7 +356,7 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
         if len(out["pose_layout"]) != pose.shape[1]:
             _fail(source, "pose", f"has {pose.shape[1]} entries per frame but pose_layout names {len(out['pose_layout'])}")
         agree("frames", pose.shape[0], "pose")
-        out["pose"] = pose
+        out["pose"], out["pose_layout"] = _standard_pose_order(source, pose, out["pose_layout"])
     elif "pose_layout" in out:
         _fail(source, "pose_layout", "is present without 'pose'")
 

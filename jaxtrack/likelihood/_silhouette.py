@@ -366,7 +366,8 @@ def check_silhouettes(silhouettes, rig: CameraRig | None = None, name: str = "si
 
     Accepts (views, height, width) or (views, frames, height, width) arrays of 0/1 or 0/255
     (uint8 or bool or float). Raises ``ValueError`` on a wrong shape, other values, a view
-    that disagrees with the rig's image size, or a view (and frame) with an empty silhouette.
+    that disagrees with the rig's image size, or a view (and frame) whose silhouette is empty or
+    all foreground.
     """
     sil = np.asarray(silhouettes)
     if sil.ndim not in (3, 4):
@@ -398,4 +399,10 @@ def check_silhouettes(silhouettes, rig: CameraRig | None = None, name: str = "si
         where = np.argwhere(area == 0)[0]
         what = f"view {where[0]}" + (f", frame {where[1]}" if binary.ndim == 4 else "")
         raise ValueError(f"{name}: empty silhouette in {what}; the bidirectional likelihood needs foreground pixels")
+    full = area >= binary.shape[-1] * binary.shape[-2]
+    if np.any(full):
+        where = np.argwhere(full)[0]
+        what = f"view {where[0]}" + (f", frame {where[1]}" if binary.ndim == 4 else "")
+        raise ValueError(f"{name}: the silhouette in {what} is all foreground (every pixel set); it says nothing about the pose "
+                         "(inverted mask, or background subtraction that failed?)")
     return binary

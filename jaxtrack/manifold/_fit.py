@@ -45,18 +45,27 @@ def _run_chunk(params, state, static, chunk: int):
     return jax.lax.scan(step, (params, state), None, length=chunk)
 
 
+def _finite(tree) -> bool:
+    return all(bool(np.all(np.isfinite(np.asarray(leaf)))) for leaf in jax.tree_util.tree_leaves(tree))
+
+
 def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float = 1e-7, progress: bool = False):
     """Maximise ``model.objective()`` over the leaves ``model.trainable()`` marks.
 
     Args:
-        max_steps: L-BFGS iterations at most.
+        max_steps: L-BFGS iterations at most (exactly this many unless it converges first).
         chunk: iterations per jitted ``lax.scan`` (progress is reported between chunks).
         tolerance: stop when a chunk improves the objective by less than this (relative).
 
     Returns:
         ``(fitted_model, FitInfo)``. Float64 is recommended (tests and defaults use it); in
-        float32 the Cholesky's adaptive jitter keeps the objective finite.
+        float32 the Cholesky's adaptive jitter keeps the objective finite. Should a chunk's
+        objective or parameters turn non-finite anyway, the fit stops at the parameters before
+        that chunk (``FitInfo.steps`` counts the steps kept).
     """
+    for name, value in (("max_steps", max_steps), ("chunk", chunk)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"fit_model: {name} must be a positive integer, got {value!r}")
     params, static = eqx.partition(model, model.trainable())
     state = _OPTIMISER.init(params)
     trace, steps = [], 0
@@ -67,16 +76,18 @@ def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float 
         bar = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
     previous = None
     while steps < max_steps:
-        (params, state), values = _run_chunk(params, state, static, chunk)
+        length = min(chunk, max_steps - steps)  # exactly max_steps in all
+        (candidate, candidate_state), values = _run_chunk(params, state, static, length)
         values = np.asarray(values)
+        if not np.all(np.isfinite(values)) or not _finite(candidate):
+            break  # keep the last chunk's finite parameters: a fit never returns NaNs
+        params, state = candidate, candidate_state
         trace.append(-values)
-        steps += chunk
+        steps += length
         if bar is not None:
-            bar.update(chunk)
+            bar.update(length)
             bar.set_postfix(objective=f"{-values[-1]:.4g}")
         current = float(values[-1])
-        if not np.isfinite(current):
-            break
         if previous is not None and abs(previous - current) <= tolerance * max(1.0, abs(current)):
             break
         previous = current
@@ -84,4 +95,4 @@ def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float 
         bar.close()
     fitted = eqx.combine(params, static)
     objective = float(fitted.objective())
-    return fitted, FitInfo(objective=objective, steps=steps, trace=np.concatenate(trace))
+    return fitted, FitInfo(objective=objective, steps=steps, trace=np.concatenate(trace) if trace else np.array([objective]))

@@ -1,23 +1,29 @@
 """Saving and loading fitted manifold models.
 
 A file is one JSON header line (format name and version, model class, shapes, dtype, the
-training sequences' boundaries) followed by the model's arrays in equinox's leaf format.
-Loading rebuilds a template of the recorded class and shapes and fills it, so a file from
-another class (when one is expected) or another format version is refused clearly.
+training sequences' boundaries, and since version 2 the length and SHA-256 of the payload)
+followed by the model's arrays in equinox's leaf format. Loading checks the payload against
+the header, so a truncated or edited file is reported as such with its name, then rebuilds a
+template of the recorded class and shapes and fills it, so a file from another class (when one
+is expected) or another format version is refused clearly. Files are written atomically.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
 
 import equinox as eqx
 import numpy as np
 
+from ..io import atomic_write
 from ._base import MANIFOLD_CLASSES, AbstractManifold
 
 FORMAT = "jaxtrack-manifold"
-VERSION = 1
+VERSION = 2
+READABLE_VERSIONS = (1, 2)  # version 1 files carry no payload length or checksum
 
 
 class ModelFileError(ValueError):
@@ -52,9 +58,14 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
         "extra": extra or {},
     }
     header.update(model.header())
-    with open(path, "wb") as handle:
+    payload = io.BytesIO()
+    eqx.tree_serialise_leaves(payload, model)
+    payload = payload.getvalue()
+    header["payload_bytes"] = len(payload)
+    header["payload_sha256"] = hashlib.sha256(payload).hexdigest()
+    with atomic_write(path) as handle:  # an interrupted write leaves any old file whole
         handle.write((json.dumps(header) + "\n").encode())
-        eqx.tree_serialise_leaves(handle, model)
+        handle.write(payload)
 
 
 def read_header(path: str | os.PathLike) -> dict:
@@ -74,19 +85,34 @@ def load_model(path: str | os.PathLike, expected_class: str | None = None):
     """Load a model saved by ``save_model``; returns ``(model, header)``.
 
     Raises:
-        ModelFileError: for another format, another version, or a class other than
-            ``expected_class`` (e.g. ``"BCGPLVM"`` when a back-constraint is needed).
+        ModelFileError: for another format, another version, a class other than
+            ``expected_class`` (e.g. ``"BCGPLVM"`` when a back-constraint is needed), a payload
+            whose length or checksum differs from the header's (truncated or edited), or a
+            header or payload that does not fit its class.
     """
+    where = os.fspath(path)
     header = read_header(path)
-    if header.get("version") != VERSION:
-        raise ModelFileError(f"{os.fspath(path)}: format version {header.get('version')}, this jaxtrack reads version {VERSION}")
+    if header.get("version") not in READABLE_VERSIONS:
+        raise ModelFileError(f"{where}: format version {header.get('version')}, this jaxtrack reads versions {READABLE_VERSIONS}")
     name = header.get("class")
     if name not in MANIFOLD_CLASSES:
-        raise ModelFileError(f"{os.fspath(path)}: unknown model class {name!r}")
+        raise ModelFileError(f"{where}: unknown model class {name!r}")
     if expected_class is not None and name != expected_class:
-        raise ModelFileError(f"{os.fspath(path)}: holds a {name}, but a {expected_class} is needed here")
-    template = MANIFOLD_CLASSES[name].template(header, np.dtype(header["dtype"]))
+        raise ModelFileError(f"{where}: holds a {name}, but a {expected_class} is needed here")
     with open(path, "rb") as handle:
         handle.readline()
-        model = eqx.tree_deserialise_leaves(handle, template)
+        payload = handle.read()
+    if "payload_bytes" in header or header.get("version", 1) >= 2:
+        expected = header.get("payload_bytes")
+        if len(payload) != expected:
+            cut = "truncated" if isinstance(expected, int) and len(payload) < expected else "edited"
+            raise ModelFileError(f"{where}: {cut}: the arrays take {len(payload)} bytes, the header says {expected}")
+        if hashlib.sha256(payload).hexdigest() != header.get("payload_sha256"):
+            raise ModelFileError(f"{where}: edited or corrupted: the arrays' SHA-256 differs from the header's")
+    try:
+        template = MANIFOLD_CLASSES[name].template(header, np.dtype(header["dtype"]))
+        model = eqx.tree_deserialise_leaves(io.BytesIO(payload), template)
+    except Exception as err:  # any failure to rebuild the recorded model is the file's fault
+        raise ModelFileError(f"{where}: the header does not describe the arrays that follow it "
+                             f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from err
     return model, header

@@ -8,6 +8,7 @@ from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
 from ._pipeline import TestScene as TestScene
 from ._pipeline import build_tracker as build_tracker
+from ._pipeline import check_frame_rates as check_frame_rates
 from ._pipeline import check_model_layout as check_model_layout
 from ._pipeline import check_test_sequence as check_test_sequence
 from ._pipeline import fit_manifold as fit_manifold

@@ -18,6 +18,7 @@ import numpy as np
 from .._custom_types import PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
+from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
@@ -57,6 +58,16 @@ def check_test_sequence(sequence: Sequence, name: str) -> None:
                          else f"{name}: a test sequence needs {missing[0]}, which the file lacks")
     if sequence.joints3d is None and sequence.pose is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
+
+
+def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
+    """Raise ``ValueError`` unless every sequence has the same frame rate (within ``tolerance``,
+    relative): dynamics fitted at one rate do not describe motion sampled at another."""
+    rates = [float(s.fps) for s in sequences]
+    for rate, name in zip(rates[1:], names[1:]):
+        if abs(rate - rates[0]) > tolerance * rates[0]:
+            raise ValueError(f"{name} is at {rate:g} Hz but {names[0]} at {rates[0]:g} Hz: the dynamics are fitted at one frame "
+                             "rate and track at it; resample with 'jaxtrack convert --fps'")
 
 
 def fit_manifold(train_poses: list[np.ndarray], latent_dim: int, steps: int, *, kind: str = "bc-gplvm", progress: bool = False):
@@ -173,6 +184,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     observed = check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames]
     truth_poses = sequence_poses(sequence, name, key=key)[:frames]
     truth = ground_truth_joints(sequence, truth_poses, body.skeleton)[:frames]
+    check_in_view(rig, forward_kinematics(body.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
+                  f"{name}'s initial pose (frame 0)")
     likelihood = make_silhouette_likelihood(body, rig, scale=likelihood_scale, window=window, silhouettes=observed)
     observations = np.moveaxis(observed, 1, 0)
     report = None
@@ -233,9 +246,11 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     budget_ = Budget(budget, layers, refine_steps)
     recipe.check_budget(budget_)
     check_model_layout(model, header, sequence, name)
+    check_frame_rates([sequence, validation], [name, "the validation sequence"])
     key = jax.random.key(seed)
     scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate)
-    motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, header.get("sequence_starts"))
+    starts = header.get("sequence_starts")
+    motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
                             velocity_from=motion.validation if recipe.velocity_for(velocity) else None)
