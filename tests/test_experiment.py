@@ -55,15 +55,13 @@ def test_bad_experiment_inputs(sequences):
 def test_bad_inputs_fail_before_any_fitting(sequences, monkeypatch):
     """Frame rates that differ, and a second test file whose silhouettes are empty, used to be
     found after minutes of fitting and tracking (or never): now before the first fit."""
-    import jaxtrack.experiment._run as run_module
-
     train, validation, test = sequences
 
     def no_fitting(*args, **kwargs):
         raise AssertionError("fitting started before the inputs were checked")
 
-    monkeypatch.setattr(run_module, "fit_manifold", no_fitting)
-    monkeypatch.setattr(run_module, "fit_tracker", no_fitting)
+    for name in ("fit_manifold", "fit_tracker"):  # the experiment's own references to them
+        monkeypatch.setattr(f"jaxtrack.experiment._run.{name}", no_fitting)
     config = ExperimentConfig(runs=1, methods=("sir", "mrpf"))
     slow = validation[0].replace(fps=validation[0].fps / 2)
     with pytest.raises(ValueError, match=r"validation0 is at \d+ Hz but train0 at \d+ Hz"):
