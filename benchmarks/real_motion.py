@@ -74,6 +74,8 @@ def main():
                         help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
     parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm"],
                         help="the manifold of every manifold tracker (own: each tracker's paper's)")
+    parser.add_argument("--latent-dim", type=int, nargs="+", default=[2],
+                        help="latent dimensions of the manifolds (several: one table each)")
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
@@ -100,18 +102,21 @@ def main():
         validation = [load_sequence(paths[t]) for t in validation_takes]
         for views in args.views:
             test = [other_body_scene(jax.random.fold_in(key, views), load_sequence(paths[test_take]), views, frames)]
-            for velocity, manifold in itertools.product(velocities, args.manifold):
+            for velocity, manifold, latent_dim in itertools.product(velocities, args.manifold, args.latent_dim):
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
-                                          seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold)
+                                          seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold,
+                                          latent_dim=latent_dim)
                 start = time.perf_counter()
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
-                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold} ({seconds:.0f} s)\n")
+                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim} "
+                      f"({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
-                    "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "frames": test[0].num_frames,
+                    "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "latent_dim": latent_dim,
+                    "frames": test[0].num_frames,
                     "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],

@@ -13,6 +13,7 @@ from . import body as body
 from . import camera as camera
 from . import data as data
 from . import dynamics as dynamics
+from . import errors as errors
 from . import evaluation as evaluation
 from . import experiment as experiment
 from . import filters as filters

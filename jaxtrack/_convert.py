@@ -11,6 +11,7 @@ import jax
 import numpy as np
 
 from .body import inverse_kinematics, retarget_positions
+from .errors import ConfigurationError
 from .io import Sequence, load_asf_amc, load_bvh, load_joints3d, resample, save_sequence
 
 
@@ -69,7 +70,10 @@ def convert_motion(
         seed: PRNG seed of the inverse kinematics' first-frame restarts.
     """
     motion = load_motion(source, asf=asf, source_fps=source_fps)
-    joints = retarget_positions(motion.positions, motion.joint_names, mapping)
+    try:
+        joints = retarget_positions(motion.positions, motion.joint_names, mapping)
+    except ValueError as err:  # the mapping does not fit this file's skeleton: say which file
+        raise ConfigurationError(f"{source}: {err}") from err
     target_fps = float(fps) if fps is not None else motion.fps
     joints = resample(joints, motion.fps, target_fps)
     if verbose:

@@ -23,6 +23,7 @@ def _demo(args) -> int:
 
 
 def _render(args) -> int:
+    from .errors import SequenceFileError
     from .io import check_output, load_sequence
     from .viz import animation, contact_sheet
 
@@ -34,7 +35,12 @@ def _render(args) -> int:
     if args.estimate:
         estimate = load_sequence(args.estimate).joints3d
         if estimate is None:
-            raise ValueError(f"{args.estimate}: has no joints3d to draw as the estimate")
+            raise SequenceFileError(f"{args.estimate}: has no joints3d to draw as the estimate")
+        if estimate.shape[:2] != (sequence.num_frames, sequence.joints3d.shape[1] if sequence.joints3d is not None else estimate.shape[1]):
+            raise SequenceFileError(f"{args.estimate}: its joints3d are {estimate.shape[0]} frames of {estimate.shape[1]} joints, but "
+                                    f"{args.sequence} has {sequence.num_frames} frames"
+                                    + (f" of {sequence.joints3d.shape[1]} joints" if sequence.joints3d is not None else "")
+                                    + ": draw an estimate over the sequence it was tracked on")
     sheet = contact_sheet(sequence, stem + "_sheet.png", estimate=estimate)
     gif = animation(sequence, stem + ".gif", estimate=estimate, scale=args.scale, every=args.every)
     print(f"wrote {sheet} and {gif}")
@@ -45,6 +51,7 @@ def _convert(args) -> int:
     import json
 
     from ._convert import convert_motion
+    from .errors import ConfigurationError
     from .io import check_output
 
     args.out = check_output(args.out, [args.source, args.asf, args.mapping], suffix=".npz")
@@ -54,7 +61,7 @@ def _convert(args) -> int:
             try:
                 mapping = json.load(handle)
             except json.JSONDecodeError as err:
-                raise ValueError(f"{args.mapping}:{err.lineno}: not valid JSON ({err.msg}, column {err.colno})") from None
+                raise ConfigurationError(f"{args.mapping}:{err.lineno}: not valid JSON ({err.msg}, column {err.colno})") from None
     report = convert_motion(
         args.source, args.out, fps=args.fps, asf=args.asf, source_fps=args.source_fps, mapping=mapping, seed=args.seed, verbose=True
     )
@@ -188,15 +195,27 @@ def _track(args) -> int:
     sequence = load_sequence(args.test)
     validation = load_sequence(args.validation)
     model, header = load_model(args.model)
+    partial = args.out[: -len(".npz")] + ".partial.npz"
+    check_output(partial, [args.test, args.validation, args.model])
+
+    def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
+        done = len(poses)
+        save_sequence(partial, sequence.cropped(done).replace(pose=poses, joints3d=joints))
+        print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
+
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
         refine_steps=args.refine_steps, velocity=args.velocity,
+        chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
+        on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
     out = sequence.replace(pose=poses, joints3d=joints)
     save_sequence(args.out, out)
+    if os.path.exists(partial):
+        os.remove(partial)
     degenerate = float(np.mean(np.asarray(info.degenerate)))
     print(f"wrote {args.out}: estimated pose {poses.shape} and joints3d {joints.shape}; mean ESS {float(np.mean(info.ess)):.1f}; "
           f"degenerate frames {100 * degenerate:.0f} %")
@@ -264,6 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
     )
+    parser.add_argument("--debug", action="store_true",
+                        help="on an error, show the Python traceback instead of the one-line message")
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="run the pipeline end to end on the embedded synthetic default")
@@ -374,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--max-degenerate", type=float, default=0.0,
                        help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
+    track.add_argument("--chunk-frames", type=int, default=100,
+                       help="track this many frames at a time and save the estimates so far to OUT.partial.npz after each "
+                            "chunk, so an interruption loses one chunk at most (the same result; 0: one pass) "
+                            "(default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
 
@@ -384,20 +409,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _report(command: str, err: BaseException) -> int:
+    """Print one line for ``err`` and return the exit status: 2 for bad input (jaxtrack's own
+    error families, ``ValueError``, a missing or unreadable file), 1 for anything else (a bug:
+    the line says how to see the traceback), 130 for Ctrl-C."""
+    from .errors import JaxtrackError
+
+    if isinstance(err, KeyboardInterrupt):
+        print(f"jaxtrack {command}: interrupted", file=sys.stderr)
+        return 130
+    if isinstance(err, (JaxtrackError, ValueError, OSError)):
+        print(f"jaxtrack {command}: error: {err}", file=sys.stderr)
+        return 2
+    message = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    print(f"jaxtrack {command}: internal error: {type(err).__name__}: {message} "
+          "(a bug in jaxtrack or a plugin; run again with --debug for the traceback)", file=sys.stderr)
+    return 1
+
+
 def main(argv=None) -> int:
+    """The ``jaxtrack`` command. Every error ends in one line on stderr and a non-zero status,
+    never a traceback, unless ``--debug`` comes before the command."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv[: next((i for i, a in enumerate(argv) if not a.startswith("-")), len(argv))]
     try:
         load_plugins(argv)
-    except (ImportError, OSError, ValueError) as err:
-        print(f"jaxtrack: error: cannot load plugin: {err}", file=sys.stderr)
+    except Exception as err:
+        if debug:
+            raise
+        print(f"jaxtrack: error: cannot load plugin: {type(err).__name__}: {err}", file=sys.stderr)
         return 2
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, FileNotFoundError, OSError) as err:
-        print(f"jaxtrack {args.command}: error: {err}", file=sys.stderr)
-        return 2
+    except (Exception, KeyboardInterrupt) as err:
+        if args.debug:
+            raise
+        return _report(args.command, err)
 
 
 if __name__ == "__main__":

@@ -117,3 +117,29 @@ def test_experiment_calibrates_the_body_first(sequences, tmp_path):
     assert len(report["radii_after_m"]) == len(report["capsules"]) == 15
     assert report["cost_after"] <= report["cost_before"]
     assert json.loads((tmp_path / "results.json").read_text())["config"]["calibrate_shape"] is True
+
+
+def test_experiment_saves_each_tracker_as_it_goes(sequences, tmp_path, monkeypatch):
+    """An experiment that fails part-way keeps, in results.json and table.md, every tracker that
+    finished (``complete`` false); the table marks the ones not run."""
+    from jaxtrack import tracking
+
+    train, validation, test = sequences
+    runs = []
+    real_track = tracking.track
+
+    def failing_track(tracker, key, scene, **kwargs):
+        runs.append(type(tracker.dynamics).__name__)
+        if len(runs) > 1:
+            raise RuntimeError("the machine went away")
+        return real_track(tracker, key, scene, **kwargs)
+
+    monkeypatch.setattr("jaxtrack.experiment._run.track", failing_track)  # the experiment's own reference
+    config = ExperimentConfig(methods=("sir", "apf"), budget=20, layers=2, runs=1, fit_steps=5, frames=3)
+    with pytest.raises(RuntimeError, match="went away"):
+        run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]}, progress=False)
+    saved = json.loads((tmp_path / "results.json").read_text())
+    assert saved["complete"] is False and list(saved["sequences"]["walk.npz"]) == ["sir"]
+    assert np.isfinite(saved["sequences"]["walk.npz"]["sir"]["error_mm_mean"])
+    assert "| walk.npz |" in (tmp_path / "table.md").read_text() and "not run" in (tmp_path / "table.md").read_text()
+    assert not list(tmp_path.glob(".*.part"))

@@ -574,3 +574,40 @@ def test_refinement_needs_a_transition_density():
         SIR(Opaque(), as_likelihood(gaussian_likelihood), 10, refine=LangevinRefinement())
     with pytest.raises(ValueError, match="num_steps must be a positive integer"):
         LangevinRefinement(num_steps=0)
+
+
+# ----------------------------------------------------------------------------- contracts and chunked runs
+
+
+def test_chunked_run_equals_one_scan_and_reports_each_chunk(getkey):
+    """``chunk_frames`` tracks a few frames at a time with the state carried: the same per-frame
+    keys, so the same result as one scan, and ``on_chunk`` sees the estimates so far."""
+    _, ys = linear_gaussian_data(getkey(), frames=7)
+    key = getkey()
+    apf = make_apf(gaussian_likelihood, Q, 30, num_layers=2, dtype=jnp.float64)
+    whole = run_filter(apf, key, jnp.zeros(2), ys)
+    seen = []
+    chunked = run_filter(apf, key, jnp.zeros(2), ys, chunk_frames=3, on_chunk=lambda done, infos: seen.append((done, infos.estimate)))
+    np.testing.assert_array_equal(chunked[1].estimate, whole[1].estimate)
+    np.testing.assert_array_equal(chunked[0].particles, whole[0].particles)
+    assert [done for done, _ in seen] == [3, 6, 7]
+    for done, estimate in seen:
+        np.testing.assert_array_equal(estimate, whole[1].estimate[:done])
+    with pytest.raises(ValueError, match="chunk_frames must be a positive integer"):
+        run_filter(apf, key, jnp.zeros(2), ys, chunk_frames=0)
+
+
+@pytest.mark.parametrize(("bad", "message"), [
+    (lambda poses, y: jnp.zeros((poses.shape[0], 2)), r"the likelihood FunctionLikelihood returned shape \(16, 2\) for 16 particles"),
+    (lambda poses, y: jnp.zeros(()), r"the likelihood FunctionLikelihood returned shape \(\) for 16 particles"),
+    (lambda poses, y: jnp.zeros(poses.shape[0], jnp.int32), "the likelihood FunctionLikelihood returned int32 values"),
+])
+def test_a_likelihood_that_breaks_its_contract_is_named_before_running(bad, message, getkey):
+    from jaxtrack.errors import TrackingError
+    from jaxtrack.likelihood import FunctionLikelihood
+
+    _, ys = linear_gaussian_data(getkey(), frames=2)
+    for tracker in (make_sir(FunctionLikelihood(bad), Q, 16, dtype=jnp.float64),
+                    make_apf(FunctionLikelihood(bad), Q, 16, num_layers=2, dtype=jnp.float64)):
+        with pytest.raises(TrackingError, match=message):
+            run_filter(tracker, getkey(), jnp.zeros(2), ys)

@@ -175,7 +175,7 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
         np.testing.assert_allclose(predict(back, z)[0], predict(model, z)[0])
     with pytest.raises(ModelFileError, match="holds a GPDM, but a BCGPLVM is needed"):
         load_model(tmp_path / "GPDM.eqx", expected_class="BCGPLVM")
-    text = (tmp_path / "GPLVM.eqx").read_bytes().replace(b'"version": 2', b'"version": 9', 1)
+    text = (tmp_path / "GPLVM.eqx").read_bytes().replace(b'"version": 3', b'"version": 9', 1)
     (tmp_path / "v9.eqx").write_bytes(text)
     with pytest.raises(ModelFileError, match="format version 9"):
         load_model(tmp_path / "v9.eqx")
@@ -190,18 +190,26 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
         "long.eqx": (good + b"\x00", r"long\.eqx: edited: the arrays take"),
         "flip.eqx": (good[:-9] + bytes([good[-9] ^ 0xFF]) + good[-8:], r"flip\.eqx: edited or corrupted: the arrays' SHA-256"),
         "header.eqx": (good[:header_end].replace(b'"latent_dim": 2', b'"latent_dim": 3') + good[header_end:],
-                       r"header\.eqx: the header does not describe the arrays"),
+                       r"header\.eqx: edited or corrupted: the header's SHA-256"),
     }
     for name, (data, message) in cases.items():
         (tmp_path / name).write_bytes(data)
         with pytest.raises(ModelFileError, match=message):
             load_model(tmp_path / name)
-    # A version-1 file (no payload length or checksum) still loads.
-    v1 = good[:header_end]
-    fields = json.loads(v1)
-    fields.update(version=1)
-    del fields["payload_bytes"], fields["payload_sha256"]
-    (tmp_path / "v1.eqx").write_bytes((json.dumps(fields) + "\n").encode() + good[header_end:])
+    # Version-1 files (no payload length or checksum) and version-2 files (no header checksum) still
+    # load; in a version-2 file an edit of the shapes is caught when the arrays do not fit them, and
+    # a header asking for more arrays than the file holds is refused before anything is allocated.
+    fields = json.loads(good[:header_end])
+    del fields["header_sha256"]
+    (tmp_path / "v2.eqx").write_bytes((json.dumps({**fields, "version": 2}) + "\n").encode() + good[header_end:])
+    assert type(load_model(tmp_path / "v2.eqx")[0]).__name__ == "BCGPLVM"
+    for edit, message in (({"latent_dim": 3}, "the header does not describe the arrays"),
+                          ({"frames": 10**9}, r"the header describes \d+ bytes of arrays, the file holds \d+")):
+        (tmp_path / "v2edit.eqx").write_bytes((json.dumps({**fields, "version": 2, **edit}) + "\n").encode() + good[header_end:])
+        with pytest.raises(ModelFileError, match=message):
+            load_model(tmp_path / "v2edit.eqx")
+    v1 = {k: v for k, v in fields.items() if k not in ("payload_bytes", "payload_sha256")}
+    (tmp_path / "v1.eqx").write_bytes((json.dumps({**v1, "version": 1}) + "\n").encode() + good[header_end:])
     assert type(load_model(tmp_path / "v1.eqx")[0]).__name__ == "BCGPLVM"
 
 

@@ -20,75 +20,7 @@ from jaxtrack.io import (
     save_sequence,
 )
 
-ASF = """# a two-bone test skeleton
-:version 1.10
-:name test
-:units
-  mass 1.0
-  length 1.0
-  angle deg
-:root
-   order TX TY TZ RX RY RZ
-   axis XYZ
-   position 0 0 0
-   orientation 0 0 0
-:bonedata
-  begin
-     id 1
-     name up
-     direction 0 1 0
-     length 2.0
-     axis 0 0 0 XYZ
-    dof rx ry rz
-    limits (-180 180)
-           (-180 180)
-           (-180 180)
-  end
-  begin
-     id 2
-     name side
-     direction 1 0 0
-     length 1.0
-     axis 0 0 90 XYZ
-    dof rx
-  end
-:hierarchy
-  begin
-    root up
-    up side
-  end
-"""
-
-
-def write_amc(path, frames):
-    lines = [":FULLY-SPECIFIED", ":DEGREES"]
-    for i, (root, up, side) in enumerate(frames, start=1):
-        lines += [str(i), "root " + " ".join(map(str, root)), "up " + " ".join(map(str, up)), "side " + " ".join(map(str, side))]
-    path.write_text("\n".join(lines) + "\n")
-
-
-def write_bvh(path, frames, frame_time=0.04):
-    """A root with 6 channels, a child with 3 rotation channels (ZXY) and an end site, centimetres."""
-    text = """HIERARCHY
-ROOT hips
-{
-\tOFFSET 0 0 0
-\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-\tJOINT spine
-\t{
-\t\tOFFSET 0 50 0
-\t\tCHANNELS 3 Zrotation Xrotation Yrotation
-\t\tEnd Site
-\t\t{
-\t\t\tOFFSET 0 40 0
-\t\t}
-\t}
-}
-MOTION
-"""
-    text += f"Frames: {len(frames)}\nFrame Time: {frame_time}\n"
-    text += "\n".join(" ".join(f"{v:g}" for v in row) for row in frames) + "\n"
-    path.write_text(text)
+from helpers import ASF, write_amc, write_bvh
 
 
 @pytest.fixture

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 
+from ..io import atomic_write
 from ..tracking import get_tracker
 
 
@@ -23,7 +24,8 @@ def results_table(results: dict) -> str:
     methods = list(results["config"]["methods"])
     lines = ["| Sequence | " + " | ".join(method_label(m) for m in methods) + " |", "|---|" + "---:|" * len(methods)]
     for name, per_method in results["sequences"].items():
-        cells = [f"{per_method[m]['error_mm_mean']:.0f} ({per_method[m]['error_mm_std']:.0f})" for m in methods]
+        cells = [f"{per_method[m]['error_mm_mean']:.0f} ({per_method[m]['error_mm_std']:.0f})" if m in per_method else "not run"
+                 for m in methods]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -50,19 +52,27 @@ def plot_error_curves(results: dict, path: str) -> str:
     return path
 
 
+def write_progress(results: dict, out_dir: str) -> dict:
+    """``results.json`` and ``table.md`` of the results so far, each written atomically (the
+    experiment calls this after every tracker on every test sequence, so an interruption loses
+    the tracker in progress at most; ``results["complete"]`` says whether the run finished)."""
+    os.makedirs(out_dir, exist_ok=True)
+    paths = {"results": os.path.join(out_dir, "results.json"), "table": os.path.join(out_dir, "table.md")}
+    serialisable = {k: v for k, v in results.items() if k != "estimates"}
+    with atomic_write(paths["results"]) as handle:
+        handle.write(json.dumps(serialisable, indent=1).encode())
+    with atomic_write(paths["table"]) as handle:
+        handle.write(results_table(results).encode())
+    return paths
+
+
 def write_outputs(results: dict, test, test_names, out_dir: str, *, animations: bool = True) -> dict:
     """``results.json``, ``table.md``, ``error_curves.png`` and one overlay GIF per test sequence
     (the estimate of the method with the lowest error, first run) under ``out_dir``."""
     from ..viz import animation
 
-    os.makedirs(out_dir, exist_ok=True)
-    paths = {"results": os.path.join(out_dir, "results.json"), "table": os.path.join(out_dir, "table.md"),
-             "curves": os.path.join(out_dir, "error_curves.png")}
-    serialisable = {k: v for k, v in results.items() if k != "estimates"}
-    with open(paths["results"], "w") as handle:
-        json.dump(serialisable, handle, indent=1)
-    with open(paths["table"], "w") as handle:
-        handle.write(results_table(results))
+    paths = write_progress(results, out_dir)
+    paths["curves"] = os.path.join(out_dir, "error_curves.png")
     plot_error_curves(results, paths["curves"])
     if animations:
         for seq, name in zip(test, test_names):

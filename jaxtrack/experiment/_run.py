@@ -36,7 +36,7 @@ from ..tracking import (
     tracker_keys,
 )
 from ._config import ExperimentConfig
-from ._report import method_label, write_outputs
+from ._report import method_label, write_outputs, write_progress
 
 
 def dynamics_parameters(fitted) -> dict:
@@ -119,8 +119,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
-    results = {"config": dataclasses.asdict(config), "manifold": None, "dynamics": {}, "velocity": {}, "sequences": {}, "estimates": {},
-               "shape_calibration": {}}
+    results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {}, "sequences": {},
+               "estimates": {}, "shape_calibration": {}}
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
     for kind in config.manifold_kinds:
@@ -150,7 +150,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             }
             say(f"{name}: body calibrated on frame 0, silhouette cost {report.cost_before:.3f} -> {report.cost_after:.3f}")
         groups = part_group_indices(scene.body.skeleton)
-        per_method = {}
+        per_method = results["sequences"][name] = {}
         for method in config.methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from)
@@ -190,7 +190,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             if np.mean(degenerate) > 0:  # printed whatever ``progress`` says: these numbers are not to be trusted
                 print(f"warning: {name} {method_label(method)}: on {100 * np.mean(degenerate):.0f} % of the frames every particle's "
                       "likelihood was -inf or NaN (the filter tracked blind on uniform weights)")
-        results["sequences"][name] = per_method
+            if out_dir is not None:  # saved as it goes: an interruption loses the tracker in progress at most
+                write_progress(results, out_dir)
+    results["complete"] = True
     if out_dir is not None:
         write_outputs(results, test, test_names, out_dir, animations=animations)
     return results

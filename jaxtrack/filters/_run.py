@@ -3,6 +3,7 @@ jitted ``lax.scan``."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
@@ -15,12 +16,14 @@ from ._base import AbstractFilter, FilterState, StepInfo
 
 
 @eqx.filter_jit
-def _scan(filter_, key, initial_pose, observations):
+def _init(filter_, key, initial_pose, num_frames: int):
+    """The initial state and the per-frame keys (frame t uses the t-th of ``split(step_key)``)."""
     init_key, step_key = jax.random.split(key)
-    state = filter_.init(init_key, initial_pose)
-    num_frames = jax.tree.leaves(observations)[0].shape[0]
-    keys = jax.random.split(step_key, num_frames)
+    return filter_.init(init_key, initial_pose), jax.random.split(step_key, num_frames)
 
+
+@eqx.filter_jit
+def _scan(filter_, state, keys, observations):
     def body(state, inputs):
         frame_key, observation = inputs
         return filter_.step(frame_key, state, observation)
@@ -29,25 +32,31 @@ def _scan(filter_, key, initial_pose, observations):
 
 
 def run_filter(
-    filter_: AbstractFilter, key: PRNGKeyArray, initial_pose: Float[ArrayLike, " d"], observations: Any
+    filter_: AbstractFilter, key: PRNGKeyArray, initial_pose: Float[ArrayLike, " d"], observations: Any, *,
+    chunk_frames: int | None = None, on_chunk: Callable[[int, StepInfo], None] | None = None,
 ) -> tuple[FilterState, StepInfo]:
-    """Run a filter over a sequence in one jitted ``lax.scan``.
+    """Run a filter over a sequence in one jitted ``lax.scan`` (or one per chunk of frames).
 
     Args:
         filter_: any ``AbstractFilter`` (SIR, APF, or one of your own).
         key: PRNG key; frame t uses the t-th of ``split(key)``'s per-frame keys. The same key
-            gives the same result, jitted or not. Runs over several keys can be vmapped:
-            ``jax.vmap(lambda k: run_filter(f, k, pose, obs))(keys)``.
+            gives the same result, jitted or not, and chunked or not. Runs over several keys can
+            be vmapped: ``jax.vmap(lambda k: run_filter(f, k, pose, obs))(keys)``.
         initial_pose: (D,) the pose at frame 0 (000 Alg. 1 line 1 duplicates it N times).
         observations: per-frame observations with a leading frame axis T, e.g. silhouettes
             (T, C, H, W).
+        chunk_frames: scan this many frames at a time, the state carried between chunks (the
+            last chunk may be shorter, and compiles once more); None: all in one scan.
+        on_chunk: called after each chunk as ``on_chunk(frames_done, infos_so_far)`` (host
+            side, e.g. to save the estimates so far so that a failure loses one chunk at most).
 
     Returns:
         ``(final_state, infos)`` with every ``StepInfo`` field stacked over T frames.
 
     Raises:
         TypeError: if ``filter_`` is not an ``AbstractFilter``.
-        ValueError: on an initial pose that is not one finite vector, or no frames.
+        ValueError: on an initial pose that is not one finite vector, no frames, or a chunk size
+            that is not a positive integer.
     """
     if not isinstance(filter_, AbstractFilter):
         raise TypeError(f"run_filter needs an AbstractFilter, got {type(filter_).__name__}")
@@ -59,4 +68,18 @@ def run_filter(
     leaves = jax.tree.leaves(observations)
     if not leaves or np.shape(leaves[0])[:1] in ((), (0,)):
         raise ValueError("observations must have a leading frame axis with at least one frame")
-    return _scan(filter_, key, initial_pose, observations)
+    if chunk_frames is not None and (isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1):
+        raise ValueError(f"chunk_frames must be a positive integer or None, got {chunk_frames!r}")
+    num_frames = int(np.shape(leaves[0])[0])
+    state, keys = _init(filter_, key, initial_pose, num_frames)
+    chunk = num_frames if chunk_frames is None else chunk_frames
+    pieces = []
+    for start in range(0, num_frames, chunk):
+        frames = slice(start, min(start + chunk, num_frames))
+        state, infos = _scan(filter_, state, keys[frames], jax.tree.map(lambda x, f=frames: x[f], observations))
+        pieces.append(infos)
+        if on_chunk is not None:
+            so_far = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: jnp.concatenate(xs), *pieces)
+            on_chunk(frames.stop, so_far)
+    infos = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: jnp.concatenate(xs), *pieces)
+    return state, infos

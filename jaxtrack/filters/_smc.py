@@ -15,6 +15,7 @@ import equinox as eqx
 import jax
 
 from .._custom_types import Array, Bool, Float, Int, PRNGKeyArray
+from ..errors import TrackingError
 from ._weights import effective_sample_size, log_mean_exp, normalise_log_weights
 
 
@@ -66,6 +67,7 @@ def smc_layer(
     ancestors = resample(resample_key, log_weights)
     moved, log_correction = move(move_key, particles[ancestors])
     log_lik = log_likelihood(moved)
+    check_layer_shapes(particles, moved, log_correction, log_lik)
     if temper is None:
         beta = jax.numpy.ones((), log_lik.dtype)
         tempered = log_lik
@@ -76,3 +78,19 @@ def smc_layer(
     info = LayerInfo(beta=beta, ess=effective_sample_size(new_log_weights), degenerate=degenerate, log_evidence=log_mean_exp(log_lik),
                      ancestors=ancestors)
     return moved, new_log_weights, info
+
+
+def check_layer_shapes(particles, moved, log_correction, log_lik) -> None:
+    """Raise ``TrackingError`` (at trace time, before anything runs) when a dynamics' move or a
+    likelihood breaks its contract: N moved particles of the state's size, and one finite-able
+    floating value per particle."""
+    n = particles.shape[0]
+    if moved.shape != particles.shape:
+        raise TrackingError(f"the dynamics' move returned particles of shape {moved.shape} for {particles.shape} "
+                            "(it must keep the number of particles and the state size)")
+    for name, value in (("the likelihood", log_lik), ("the dynamics' log correction", log_correction)):
+        if value.shape != (n,):
+            raise TrackingError(f"{name} returned shape {value.shape} for {n} particles; it must return one value per particle, "
+                                f"shape ({n},)")
+        if not jax.numpy.issubdtype(value.dtype, jax.numpy.floating):
+            raise TrackingError(f"{name} returned {value.dtype} values; it must return floating log-densities")

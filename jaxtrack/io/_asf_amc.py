@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from ._mocap import Y_UP_TO_Z_UP, MotionCapture, MotionFileError, euler_matrix
+from ._mocap import Y_UP_TO_Z_UP, MotionCapture, MotionFileError, euler_matrix, overflow_checked
 
 _ROOT = "root"
 
@@ -76,6 +76,11 @@ def _floats(path, number, words, count, what):
     return values
 
 
+def _need_value(path, number, words):
+    if len(words) < 2:
+        raise MotionFileError(path, number, f"{words[0]!r} without a value")
+
+
 def read_asf(path: str | os.PathLike) -> AsfSkeleton:
     """Parse an ASF skeleton file. Raises ``MotionFileError`` with the line number."""
     path = os.fspath(path)
@@ -101,6 +106,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
             if words[0] == "length":
                 length_unit = float(_floats(path, number, words[1:], 1, "units length")[0])
             elif words[0] == "angle":
+                _need_value(path, number, words)
                 if words[1].lower() not in ("deg", "rad"):
                     raise MotionFileError(path, number, f"units angle must be deg or rad, got {words[1]!r}")
                 degrees = words[1].lower() == "deg"
@@ -113,6 +119,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
                     raise MotionFileError(path, number, f"unknown root channel(s) {bad}")
                 root["order"] = order
             elif key == "axis":
+                _need_value(path, number, words)
                 root["axis"] = _axis_order(path, number, words[1])
             elif key == "position":
                 root["position"] = _floats(path, number, words[1:], 3, "root position")
@@ -137,13 +144,15 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
             elif key == "id":
                 continue
             elif key == "name":
+                _need_value(path, number, words)
                 current["name"] = words[1]
             elif key == "direction":
                 direction = _floats(path, number, words[1:], 3, "direction")
-                norm = np.linalg.norm(direction)
-                if not norm > 0:
+                largest = np.abs(direction).max()
+                if not largest > 0:
                     raise MotionFileError(path, number, "direction 0 0 0: a bone needs a direction")
-                current["direction"] = direction / norm
+                direction = direction / largest  # scaled first: the norm of (1e308, 1, 0) would overflow
+                current["direction"] = direction / np.linalg.norm(direction)
             elif key == "length":
                 current["length"] = float(_floats(path, number, words[1:], 1, "length")[0])
                 if not current["length"] > 0:
@@ -314,6 +323,7 @@ def amc_channels(skeleton: AsfSkeleton) -> list[str]:
     ]
 
 
+@overflow_checked
 def motion_from_amc_values(
     skeleton: AsfSkeleton, values, fps: float, *, length_unit_m: float | None = None, source: str = "amc values"
 ) -> MotionCapture:

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 
-from ._mocap import Y_UP_TO_Z_UP, MotionCapture, MotionFileError, euler_matrix
+from ._mocap import Y_UP_TO_Z_UP, MotionCapture, MotionFileError, euler_matrix, overflow_checked
 
 _CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 
@@ -173,6 +173,7 @@ def _is_float(word):
         return False
 
 
+@overflow_checked
 def load_bvh(path: str | os.PathLike, *, unit_m: float | None = None, y_up: bool = True) -> MotionCapture:
     """Load a BVH file into world-frame joint positions (metres, Z up).
 

@@ -3,21 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
+from ..errors import MotionFileError as MotionFileError
+
 # Y-up (ASF/AMC, BVH) to the project's Z-up world: a +90 degree turn about x, (x, y, z) -> (x, -z, y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-
-
-class MotionFileError(ValueError):
-    """A malformed motion file; the message names the file and the line."""
-
-    def __init__(self, path: str, line: int | None, message: str):
-        where = f"{path}:{line}" if line is not None else str(path)
-        super().__init__(f"{where}: {message}")
-        self.path = path
-        self.line = line
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -43,6 +36,13 @@ class MotionCapture:
     channels: tuple[tuple[str, str], ...]
     values: np.ndarray
     source: str
+
+    def __post_init__(self):
+        for name in ("positions", "values"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                what = "joint positions" if name == "positions" else "channel values"
+                raise MotionFileError(self.source, None, f"its numbers are too large: the {what} overflow to infinity "
+                                                         "(a length, offset or angle far out of range?)")
 
     @property
     def num_frames(self) -> int:
@@ -86,3 +86,15 @@ def euler_matrix(angles: np.ndarray, order: str) -> np.ndarray:
         R[..., d, b] = sign * s
         out = R @ out
     return out
+
+
+def overflow_checked(loader):
+    """Run a loader's kinematics with NumPy's overflow warnings off: ``MotionCapture`` refuses
+    any non-finite result itself, naming the file, instead of a warning and infinite joints."""
+
+    @functools.wraps(loader)
+    def wrapped(*args, **kwargs):
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return loader(*args, **kwargs)
+
+    return wrapped

@@ -15,9 +15,7 @@ import os
 import tempfile
 from collections.abc import Iterable, Iterator
 
-
-class OutputPathError(ValueError):
-    """An output location that cannot or must not be written, found before any work."""
+from ..errors import OutputPathError
 
 
 def output_file(path: str | os.PathLike, suffix: str | None = None) -> str:

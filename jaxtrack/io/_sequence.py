@@ -33,11 +33,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-import zipfile
 from collections.abc import Mapping
 
 import numpy as np
 
+from ..errors import SequenceFileError
 from ._output import atomic_write, output_file
 
 ARRAY_KEYS = (
@@ -66,10 +66,6 @@ def eqx_replace(module, **changes):
 
     names = list(changes)
     return eqx.tree_at(lambda m: [getattr(m, n) for n in names], module, [changes[n] for n in names])
-
-
-class SequenceFileError(ValueError):
-    """A sequence file or in-memory sequence with a missing, misshapen or invalid entry."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -123,6 +119,14 @@ class Sequence:
         return self.replace(
             camera_K=np.asarray(rig.K), image_size=np.asarray(rig.image_size), silhouettes=silhouettes, images=None,
         )
+
+    def cropped(self, frames: int) -> Sequence:
+        """The first ``frames`` frames (every per-frame key cut; 1 <= frames <= num_frames)."""
+        if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= self.num_frames:
+            raise SequenceFileError(f"cannot crop a sequence of {self.num_frames} frames to {frames!r}")
+        cut = {key: getattr(self, key)[:frames] for key in ("joints3d", "pose") if getattr(self, key) is not None}
+        cut.update({key: getattr(self, key)[:, :frames] for key in ("silhouettes", "images") if getattr(self, key) is not None})
+        return self.replace(**cut)
 
     @property
     def num_frames(self) -> int:
@@ -215,8 +219,8 @@ def load_sequence(path: str | os.PathLike) -> Sequence:
     try:
         with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as archive:  # the handle closes on any error
             fields = {key: archive[key] for key in archive.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as err:
-        raise SequenceFileError(f"{path}: not a readable .npz sequence file ({err})") from err
+    except Exception as err:  # a corrupt archive fails in zipfile, zlib, struct or NumPy's header parser: the file's fault
+        raise SequenceFileError(f"{path}: not a readable .npz sequence file ({type(err).__name__}: {err})") from err
     unknown = sorted(set(fields) - set(ARRAY_KEYS) - {"fps"})
     if unknown:
         raise SequenceFileError(f"{path}: unknown key(s) {unknown}; known keys are fps, {', '.join(ARRAY_KEYS)}")

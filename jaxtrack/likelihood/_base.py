@@ -11,6 +11,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
+from ..errors import TrackingError
 
 
 class AbstractLikelihood(eqx.Module):
@@ -28,7 +29,14 @@ class AbstractLikelihood(eqx.Module):
         where the likelihood is smooth. May return ``-inf`` for an impossible pose."""
 
     def __call__(self, poses: Float[Array, "particles dofs"], observation: Any) -> Float[Array, " particles"]:
-        return self.log_likelihood(poses, observation)
+        values = self.log_likelihood(poses, observation)
+        # Checked when traced, before anything runs: a wrong shape would otherwise broadcast silently.
+        n = poses.shape[0]
+        if getattr(values, "shape", None) != (n,) or not jnp.issubdtype(values.dtype, jnp.floating):
+            found = f"shape {getattr(values, 'shape', None)}" if getattr(values, "shape", None) != (n,) else f"{values.dtype} values"
+            raise TrackingError(f"the likelihood {type(self).__name__} returned {found} for {n} particles; it must return one "
+                                f"floating log-likelihood per particle, shape ({n},)")
+        return values
 
     def __add__(self, other: AbstractLikelihood) -> SumLikelihood:
         if not isinstance(other, AbstractLikelihood):

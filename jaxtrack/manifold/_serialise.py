@@ -16,18 +16,22 @@ import json
 import os
 
 import equinox as eqx
+import jax
 import numpy as np
 
+from ..errors import ModelFileError
 from ..io import atomic_write
 from ._base import MANIFOLD_CLASSES, AbstractManifold
 
 FORMAT = "jaxtrack-manifold"
-VERSION = 2
-READABLE_VERSIONS = (1, 2)  # version 1 files carry no payload length or checksum
+VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)  # version 1 files carry no payload length or checksum, version 2 none of the header
 
 
-class ModelFileError(ValueError):
-    """A model file that cannot be loaded (wrong format, version or class)."""
+def _header_digest(header: dict) -> str:
+    """SHA-256 of the header's other fields, as canonical JSON (sorted keys)."""
+    fields = {k: v for k, v in header.items() if k != "header_sha256"}
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()
 
 
 def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: dict | None = None) -> None:
@@ -63,6 +67,7 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
     payload = payload.getvalue()
     header["payload_bytes"] = len(payload)
     header["payload_sha256"] = hashlib.sha256(payload).hexdigest()
+    header["header_sha256"] = _header_digest(header)
     with atomic_write(path) as handle:  # an interrupted write leaves any old file whole
         handle.write((json.dumps(header) + "\n").encode())
         handle.write(payload)
@@ -109,9 +114,19 @@ def load_model(path: str | os.PathLike, expected_class: str | None = None):
             raise ModelFileError(f"{where}: {cut}: the arrays take {len(payload)} bytes, the header says {expected}")
         if hashlib.sha256(payload).hexdigest() != header.get("payload_sha256"):
             raise ModelFileError(f"{where}: edited or corrupted: the arrays' SHA-256 differs from the header's")
+    if header.get("version", 1) >= 3 and header.get("header_sha256") != _header_digest(header):
+        raise ModelFileError(f"{where}: edited or corrupted: the header's SHA-256 differs from the one it records")
     try:
-        template = MANIFOLD_CLASSES[name].template(header, np.dtype(header["dtype"]))
-        model = eqx.tree_deserialise_leaves(io.BytesIO(payload), template)
+        build = MANIFOLD_CLASSES[name].template
+        dtype = np.dtype(header["dtype"])
+        # The shapes first, without allocating: a header that asks for more than the file holds is refused.
+        needed = sum(leaf.size * leaf.dtype.itemsize for leaf in jax.tree.leaves(eqx.filter_eval_shape(build, header, dtype))
+                     if hasattr(leaf, "dtype"))
+        if needed > len(payload):
+            raise ModelFileError(f"{where}: the header describes {needed} bytes of arrays, the file holds {len(payload)}")
+        model = eqx.tree_deserialise_leaves(io.BytesIO(payload), build(header, dtype))
+    except ModelFileError:
+        raise
     except Exception as err:  # any failure to rebuild the recorded model is the file's fault
         raise ModelFileError(f"{where}: the header does not describe the arrays that follow it "
                              f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from err

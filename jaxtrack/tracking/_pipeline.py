@@ -198,17 +198,24 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     )
 
 
-def track(tracker, key: PRNGKeyArray, scene: TestScene):
+def track(tracker, key: PRNGKeyArray, scene: TestScene, *, chunk_frames: int | None = None, on_chunk=None):
     """Run a tracker on a prepared scene from its first frame's ground truth.
+
+    With ``chunk_frames``, the frames are tracked that many at a time (the same result for the
+    same key) and ``on_chunk(poses (t, D), joints (t, J, 3))`` is called with the estimates of
+    the first t frames after each chunk, so a caller can save them as it goes.
 
     Returns:
         ``(poses (T, D), joints (T, J, 3), infos)``: float64 estimates and the per-frame
         ``StepInfo``.
     """
-    _, info = run_filter(tracker, key, scene.initial_pose, scene.observations)
-    poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
-    joints = np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(poses, TRACKING_DTYPE)), np.float64)
-    return poses, joints, info
+    def estimates(info):
+        poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
+        return poses, np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(poses, TRACKING_DTYPE)), np.float64)
+
+    report = None if on_chunk is None else (lambda frames_done, info: on_chunk(*estimates(info)))
+    _, info = run_filter(tracker, key, scene.initial_pose, scene.observations, chunk_frames=chunk_frames, on_chunk=report)
+    return *estimates(info), info
 
 
 def tracker_keys(seed: int, index: int) -> tuple[PRNGKeyArray, PRNGKeyArray]:
@@ -234,9 +241,11 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None):
+                   calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
+                   on_chunk=None):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
-    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``).
+    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``); ``chunk_frames``
+    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk).
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
@@ -254,4 +263,4 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
                             velocity_from=motion.validation if recipe.velocity_for(velocity) else None)
-    return track(tracker, jax.random.fold_in(run_root, 0), scene)
+    return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)

@@ -25,6 +25,23 @@ def _projected(sequence: Sequence, joints) -> np.ndarray:
     return uv.transpose(0, 2, 1, 3)
 
 
+def _checked_estimate(sequence: Sequence, estimate) -> np.ndarray:
+    """The estimate as (T, J, 3) float64, refused unless it has the sequence's frames and joints."""
+    estimate = np.asarray(estimate, np.float64)
+    frames = sequence.num_frames
+    joints = None if sequence.joints3d is None else sequence.joints3d.shape[1]
+    if estimate.ndim != 3 or estimate.shape[2] != 3:
+        raise ValueError(f"the estimate must be (frames, joints, 3) joint positions, got shape {estimate.shape}")
+    if estimate.shape[0] != frames:
+        raise ValueError(f"the estimate has {estimate.shape[0]} frames and the sequence {frames}: draw it over the sequence "
+                         "it was tracked on (the same frames)")
+    if joints is not None and estimate.shape[1] != joints:
+        raise ValueError(f"the estimate has {estimate.shape[1]} joints and the sequence {joints}")
+    if not np.all(np.isfinite(estimate)):
+        raise ValueError("the estimate has non-finite joint positions")
+    return estimate
+
+
 def _background(sequence: Sequence) -> np.ndarray:
     """(C, T, H, W, 3) uint8 frames: images if present, else silhouettes in grey."""
     if sequence.images is not None:
@@ -75,7 +92,7 @@ def contact_sheet(sequence: Sequence, path: str, *, frames=None, estimate=None, 
     if sequence.joints3d is not None:
         layers.append((_projected(sequence, sequence.joints3d), _TRUTH, "truth"))
     if estimate is not None:
-        layers.append((_projected(sequence, estimate), _ESTIMATE, "estimate"))
+        layers.append((_projected(sequence, _checked_estimate(sequence, estimate)), _ESTIMATE, "estimate"))
     views = background.shape[0]
     height, width = background.shape[2:4]
     fig, axes = plt.subplots(
@@ -127,7 +144,7 @@ def animation(
     if sequence.joints3d is not None:
         layers.append((_projected(sequence, sequence.joints3d), _TRUTH))
     if estimate is not None:
-        layers.append((_projected(sequence, estimate), _ESTIMATE))
+        layers.append((_projected(sequence, _checked_estimate(sequence, estimate)), _ESTIMATE))
     views, num_frames, height, width = background.shape[:4]
     out = []
     for t in range(0, num_frames, every):
