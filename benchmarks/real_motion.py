@@ -121,6 +121,8 @@ def main():
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
+                                    "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
+                                    "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "velocity": config.velocity_of(m), "manifold": config.manifold_of(m)}
                                 for m in args.methods},
                 })

@@ -110,35 +110,23 @@ def motion_files(tmp_path_factory):
     return folder, asf, amc, bvh
 
 
+MOTION_READERS = {  # which file is edited, and how the pair is read
+    "asf": lambda asf, amc, bvh: load_asf_amc(asf, amc, 120.0),
+    "amc": lambda asf, amc, bvh: load_asf_amc(asf, amc, 120.0),
+    "bvh": lambda asf, amc, bvh: load_bvh(bvh),
+}
+
+
+@pytest.mark.parametrize("edited_kind", list(MOTION_READERS))
 @FUZZ
 @given(data=st.data())
-def test_asf_reader_never_crashes_hangs_or_returns_nonsense(motion_files, data):
-    folder, asf, amc, _ = motion_files
-    edited = folder / "edited.asf"
-    edited.write_bytes(data.draw(mutations(asf.read_bytes())))
-    motion = read_or_refuse(lambda: load_asf_amc(edited, amc, 120.0))
-    if motion is not None:
-        check_motion(motion)
-
-
-@FUZZ
-@given(data=st.data())
-def test_amc_reader_never_crashes_hangs_or_returns_nonsense(motion_files, data):
-    folder, asf, amc, _ = motion_files
-    edited = folder / "edited.amc"
-    edited.write_bytes(data.draw(mutations(amc.read_bytes())))
-    motion = read_or_refuse(lambda: load_asf_amc(asf, edited, 120.0))
-    if motion is not None:
-        check_motion(motion)
-
-
-@FUZZ
-@given(data=st.data())
-def test_bvh_reader_never_crashes_hangs_or_returns_nonsense(motion_files, data):
-    folder, _, _, bvh = motion_files
-    edited = folder / "edited.bvh"
-    edited.write_bytes(data.draw(mutations(bvh.read_bytes())))
-    motion = read_or_refuse(lambda: load_bvh(edited))
+def test_motion_readers_never_crash_hang_or_return_nonsense(motion_files, edited_kind, data):
+    folder, *originals = motion_files
+    files = dict(zip(("asf", "amc", "bvh"), originals))
+    edited = folder / f"edited.{edited_kind}"
+    edited.write_bytes(data.draw(mutations(files[edited_kind].read_bytes())))
+    files[edited_kind] = edited
+    motion = read_or_refuse(lambda: MOTION_READERS[edited_kind](files["asf"], files["amc"], files["bvh"]))
     if motion is not None:
         check_motion(motion)
 

@@ -96,7 +96,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         entries carry a velocity and its fitted spreads),
         "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
-        per-frame curve, per-part errors, frames/s, the mean ESS and the degenerate fraction)
+        per-frame curve (mean over the runs, and each run's), per-part errors, frames/s, the
+        mean ESS and the degenerate fraction)
         and "estimates" (first run's poses and joints).
     """
     config = ExperimentConfig() if config is None else config
@@ -177,6 +178,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                 "error_mm_std": float(np.std(errors)),
                 "error_mm_per_run": errors,
                 "per_frame_error_mm": np.mean(curves, axis=0).round(2).tolist(),
+                "per_frame_error_mm_per_run": [c.round(2).tolist() for c in curves],
                 "per_group_error_mm": {g: float(np.mean([e[g] for e in group_errors])) for g in groups},
                 "frames_per_second": float(scene.num_frames / np.median(steady)),
                 "first_run_s (includes compile)": float(times[0]),

@@ -1,0 +1,78 @@
+"""Variants of the one-layer manifold trackers tried against their drift on real motion (issue
+#13, item 5), registered as trackers over the public API and run through ``real_motion.py``'s
+protocol (every option of that script applies):
+
+- ``mrpf-final``: MRPF (eq. 28 sampled exactly, GPDM latent proposal) at half the budget, then
+  001 Alg. 3's final full-pose layer (half the pose random walk's scales) at the other half,
+  which gives the estimate; the MRPF particles carry on to the next frame;
+- ``mrpf-anneal``: MRPF's transition as layer 0 of a 3-layer annealed filter (later layers
+  perturb with eq. 29's random walk, shrinking), budget split in three;
+- ``latentpf-final``, ``latentpf-anneal``: the same two changes to LatentPF on the GPDM.
+
+    taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
+        --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
+        --methods mrpf mrpf-final mrpf-anneal latentpf latentpf-final latentpf-anneal --json variants.json
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import jax.numpy as jnp
+
+from jaxtrack.dynamics import PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
+from jaxtrack.filters import APF, ProjectedMean
+from jaxtrack.tracking import TrackerRecipe, register_tracker
+
+FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
+
+
+def _final_layer(motion):
+    return PoseRandomWalk(FINAL_LAYER_SCALE * jnp.asarray(fit_pose_random_walk(list(motion.validation)).scales))
+
+
+def _mrpf(key, motion):
+    return fit_mrpf_transition(motion.manifold, list(motion.validation), key=key, proposal="product", latent_proposal="gpdm")
+
+
+def _latent(key, motion):
+    del key
+    return fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts)
+
+
+def _with_final(fit_one):
+    return lambda key, motion: (fit_one(key, motion), _final_layer(motion))
+
+
+def _build_final(fitted, likelihood, budget):
+    dynamics, final = fitted  # layer 0 at beta = 1 is SIR's step exactly; the final layer refines the estimate
+    return APF(dynamics, likelihood, budget.evaluations // 2, 1, fixed_betas=(1.0,), final_layer=final)
+
+
+def _build_annealed(estimator=None):
+    def build(dynamics, likelihood, budget):
+        options = {} if estimator is None else {"estimator": estimator(dynamics.manifold)}
+        return APF(dynamics, likelihood, budget.evaluations // 3, 3, **options)
+
+    return build
+
+
+VARIANTS = [
+    TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
+                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+    TrackerRecipe("mrpf-anneal", "MRPF+anneal3", "MRPF's transition as layer 0 of three annealing layers", _mrpf, _build_annealed(),
+                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+    TrackerRecipe("latentpf-final", "LatentPF+final", "LatentPF, then a final full-pose layer for the estimate", _with_final(_latent),
+                  _build_final, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+    TrackerRecipe("latentpf-anneal", "LatentPF+anneal3", "LatentPF's GPDM step as layer 0 of three annealing layers", _latent,
+                  _build_annealed(ProjectedMean), needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+]
+
+if __name__ == "__main__":
+    for recipe in VARIANTS:
+        register_tracker(recipe, replace=True)
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import real_motion
+
+    real_motion.main()
