@@ -6,6 +6,9 @@ import jax
 import pytest
 
 jax.config.update("jax_enable_x64", True)
+# The command line keeps compiled programs in ~/.cache unless told otherwise: not from the tests
+# (test_cli.py checks the cache in a subprocess of its own).
+os.environ["JAXTRACK_CACHE_DIR"] = "off"
 
 SHARED_DATA = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
 

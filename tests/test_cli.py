@@ -191,3 +191,36 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
     assert partial.num_frames == 2 and partial.silhouettes.shape[1] == 2
     np.testing.assert_array_equal(partial.pose, load_sequence(tmp_path / "whole.npz").pose[:2])
     assert not (tmp_path / "cut.npz").exists()
+
+
+@pytest.mark.slow
+def test_a_second_call_loads_its_compiled_trackers_from_the_cache(tmp_path):
+    """The command line keeps compiled programs in JAXTRACK_CACHE_DIR: the first ``track`` fills
+    it, a second identical call adds nothing (it loaded them), and ``--no-compile-cache`` or
+    JAXTRACK_CACHE_DIR=off writes none."""
+    import os
+    import subprocess
+    import sys
+
+    seq = small_scene(num_frames=4)[2]
+    test = tmp_path / "walk.npz"
+    save_sequence(test, seq)
+    model = tmp_path / "m.eqx"
+    assert main(["fit", str(test), "--out", str(model), "--steps", "1"]) == 0
+    cache = tmp_path / "cache"
+
+    def run(*extra, env_cache=str(cache)):
+        argv = [*extra, "track", str(test), "--method", "sir", "--model", str(model), "--validation", str(test), "--budget", "16",
+                "--out", str(tmp_path / "est")]
+        code = "import sys; from jaxtrack.cli import main; sys.exit(main(sys.argv[1:]))"
+        done = subprocess.run([sys.executable, "-c", code, *argv], env={**os.environ, "JAXTRACK_CACHE_DIR": env_cache},
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return sorted(p.name for p in cache.rglob("*") if p.is_file()) if cache.exists() else []
+
+    first = run()
+    assert first, "nothing was cached"
+    assert run() == first
+    for path in [p for p in cache.rglob("*") if p.is_file()]:
+        path.unlink()
+    assert run("--no-compile-cache") == [] and run(env_cache="off") == []
