@@ -15,25 +15,43 @@ from .._custom_types import ArrayLike, Float, PRNGKeyArray
 from ._base import AbstractFilter, FilterState, StepInfo
 
 
+def _constrain(state: FilterState, sharding) -> FilterState:
+    """The particle axis of the state laid out by ``sharding`` (None: as XLA chooses)."""
+    if sharding is None:
+        return state
+    return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, sharding), state)
+
+
 @eqx.filter_jit
-def _init(filter_, key, initial_pose, num_frames: int):
+def _init(filter_, key, initial_pose, num_frames: int, sharding=None):
     """The initial state and the per-frame keys (frame t uses the t-th of ``split(step_key)``)."""
     init_key, step_key = jax.random.split(key)
-    return filter_.init(init_key, initial_pose), jax.random.split(step_key, num_frames)
+    return _constrain(filter_.init(init_key, initial_pose), sharding), jax.random.split(step_key, num_frames)
 
 
 @eqx.filter_jit
-def _scan(filter_, state, keys, observations):
+def _scan(filter_, state, keys, observations, sharding=None):
     def body(state, inputs):
         frame_key, observation = inputs
-        return filter_.step(frame_key, state, observation)
+        state, info = filter_.step(frame_key, _constrain(state, sharding), observation)
+        return _constrain(state, sharding), info
 
     return jax.lax.scan(body, state, (keys, observations))
+
+
+def particle_sharding(devices=None) -> jax.sharding.NamedSharding:
+    """A sharding that splits the particle axis over ``devices`` (default: all of
+    ``jax.devices()``), for ``run_filter(..., sharding=...)``. The particle count must be a
+    multiple of the number of devices."""
+    devices = jax.devices() if devices is None else list(devices)
+    mesh = jax.sharding.Mesh(np.asarray(devices), ("particles",))
+    return jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("particles"))
 
 
 def run_filter(
     filter_: AbstractFilter, key: PRNGKeyArray, initial_pose: Float[ArrayLike, " d"], observations: Any, *,
     chunk_frames: int | None = None, on_chunk: Callable[[int, StepInfo], None] | None = None,
+    sharding: jax.sharding.Sharding | None = None,
 ) -> tuple[FilterState, StepInfo]:
     """Run a filter over a sequence in one jitted ``lax.scan`` (or one per chunk of frames).
 
@@ -49,6 +67,12 @@ def run_filter(
             last chunk may be shorter, and compiles once more); None: all in one scan.
         on_chunk: called after each chunk as ``on_chunk(frames_done, infos_so_far)`` (host
             side, e.g. to save the estimates so far so that a failure loses one chunk at most).
+        sharding: lay the particles out over several devices, e.g. ``particle_sharding()``
+            (every device of the process) or a ``NamedSharding`` over a mesh axis of your own;
+            XLA partitions the step and gathers across devices where resampling needs it. The
+            same key gives the same result as unsharded, up to the order of floating-point sums.
+            With ``jax.distributed.initialize()`` the mesh may span processes on several
+            machines (README, "Several devices").
 
     Returns:
         ``(final_state, infos)`` with every ``StepInfo`` field stacked over T frames.
@@ -71,12 +95,17 @@ def run_filter(
     if chunk_frames is not None and (isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1):
         raise ValueError(f"chunk_frames must be a positive integer or None, got {chunk_frames!r}")
     num_frames = int(np.shape(leaves[0])[0])
-    state, keys = _init(filter_, key, initial_pose, num_frames)
+    if sharding is not None:
+        shards = getattr(sharding, "num_devices", 1)
+        particles = getattr(filter_, "num_particles", None)
+        if particles is not None and particles % shards:
+            raise ValueError(f"{particles} particles cannot be split evenly over {shards} devices; use a multiple of {shards}")
+    state, keys = _init(filter_, key, initial_pose, num_frames, sharding)
     chunk = num_frames if chunk_frames is None else chunk_frames
     pieces = []
     for start in range(0, num_frames, chunk):
         frames = slice(start, min(start + chunk, num_frames))
-        state, infos = _scan(filter_, state, keys[frames], jax.tree.map(lambda x, f=frames: x[f], observations))
+        state, infos = _scan(filter_, state, keys[frames], jax.tree.map(lambda x, f=frames: x[f], observations), sharding)
         pieces.append(infos)
         if on_chunk is not None:
             so_far = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: jnp.concatenate(xs), *pieces)
