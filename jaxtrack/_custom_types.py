@@ -10,9 +10,10 @@ Dimension names used in annotations:
 - ``views``: cameras C of a rig.
 - ``height width``: image rows H and columns W, in pixels.
 - ``points``: any number of 3-D points.
+- ``runs``: independent runs of a tracker (a batch of PRNG keys).
 """
 
-from jaxtyping import Array, ArrayLike, Bool, Float, Int, PRNGKeyArray, Shaped, UInt8
+from jaxtyping import Array, ArrayLike, Bool, Float, Int, Key, PRNGKeyArray, Shaped, UInt8
 
 __all__ = [
     "Array",
@@ -20,6 +21,7 @@ __all__ = [
     "Bool",
     "Float",
     "Int",
+    "Key",
     "PRNGKeyArray",
     "Shaped",
     "UInt8",

@@ -143,3 +143,19 @@ def test_experiment_saves_each_tracker_as_it_goes(sequences, tmp_path, monkeypat
     assert np.isfinite(saved["sequences"]["walk.npz"]["sir"]["error_mm_mean"])
     assert "| walk.npz |" in (tmp_path / "table.md").read_text() and "not run" in (tmp_path / "table.md").read_text()
     assert not list(tmp_path.glob(".*.part"))
+
+
+@pytest.mark.slow
+def test_batched_runs_equal_separate_runs(sequences):
+    """``batch_runs`` tracks a tracker's runs in one vmapped call: the same runs as one call each
+    (float32 tracking: equal to rounding), so the same table."""
+    train, validation, test = sequences
+    separate, batched = (run_experiment(train, validation, test, ExperimentConfig(methods=("sir", "gpapf"), budget=40, layers=2, runs=3,
+                                                                                   fit_steps=5, frames=4, batch_runs=batch),
+                                        names={"test": ["walk"]}, progress=False) for batch in (False, True))
+    for method in ("sir", "gpapf"):
+        a, b = separate["sequences"]["walk"][method], batched["sequences"]["walk"][method]
+        np.testing.assert_allclose(b["error_mm_per_run"], a["error_mm_per_run"], rtol=1e-3, atol=0.05)
+        np.testing.assert_allclose(b["per_frame_error_mm_per_run"], a["per_frame_error_mm_per_run"], atol=0.1)
+        assert a["compile_s"] is not None and b["compile_s"] is None
+        np.testing.assert_allclose(separate["estimates"]["walk"][method][1], batched["estimates"]["walk"][method][1], atol=1e-4)

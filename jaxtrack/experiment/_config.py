@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..errors import ConfigurationError
 from ..tracking import GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
 
 
@@ -16,6 +17,9 @@ class ExperimentConfig:
         layers: annealing layers of the annealed trackers (GPAPF's last one is its full-pose
             layer).
         runs: runs per tracker, each with its own key.
+        batch_runs: track a tracker's runs on a test sequence in one compiled call (``jax.vmap``
+            over the runs' keys; ``tracking.track_runs``): the same runs up to float rounding,
+            fewer dispatches; frames/s is then the batch's frames over its time, compile included.
         latent_dim: dimension of the BC-GPLVM latent space.
         fit_steps: L-BFGS iterations for the manifold.
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
@@ -44,6 +48,7 @@ class ExperimentConfig:
     budget: int = 500
     layers: int = 5
     runs: int = 5
+    batch_runs: bool = False
     latent_dim: int = 2
     fit_steps: int = 300
     likelihood_scale: float = 100.0
@@ -58,22 +63,22 @@ class ExperimentConfig:
 
     def __post_init__(self):
         if not self.methods:
-            raise ValueError("the experiment needs at least one tracker in methods")
+            raise ConfigurationError("the experiment needs at least one tracker in methods")
         if len(set(self.methods)) != len(self.methods):
-            raise ValueError(f"methods lists a tracker twice: {list(self.methods)}")
+            raise ConfigurationError(f"methods lists a tracker twice: {list(self.methods)}")
         recipes = [get_tracker(m) for m in self.methods]  # unknown names: ValueError listing the registered ones
         if self.runs < 1:
-            raise ValueError(f"runs must be positive, got {self.runs}")
+            raise ConfigurationError(f"runs must be positive, got {self.runs}")
         if self.frames is not None and self.frames < 1:
-            raise ValueError(f"frames must be positive, got {self.frames}")
+            raise ConfigurationError(f"frames must be positive, got {self.frames}")
         if self.latent_dim < 1 or self.fit_steps < 1:
-            raise ValueError("latent_dim and fit_steps must be positive")
+            raise ConfigurationError("latent_dim and fit_steps must be positive")
         if not self.likelihood_scale > 0:
-            raise ValueError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
+            raise ConfigurationError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
-            raise ValueError(f"resolution must be (width, height) in pixels, got {self.resolution}")
+            raise ConfigurationError(f"resolution must be (width, height) in pixels, got {self.resolution}")
         if self.manifold is not None and self.manifold not in MANIFOLD_KINDS:
-            raise ValueError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
+            raise ConfigurationError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
         budget = self.tracking_budget
         for recipe in recipes:
             recipe.check_budget(budget)

@@ -32,6 +32,7 @@ from ..tracking import (
     prepare_test,
     sequence_poses,
     track,
+    track_runs,
     tracker_index,
     tracker_keys,
 )
@@ -77,6 +78,24 @@ def shared_window(test, frames, resolution=None):
         masks = [downsample_silhouettes(m, *resolution) for m in masks]
     windows = [suggest_window((m > 0).astype(np.uint8)) for m in masks]
     return max(w[0] for w in windows), max(w[1] for w in windows)
+
+
+def _runs(tracker, run_root, scene, config: ExperimentConfig):
+    """Each run's ``(poses, joints, infos, seconds)``: run r with key ``fold_in(run_root, r)``,
+    one call each, or all in one vmapped call (``config.batch_runs``; its time then counted once,
+    shared by the runs)."""
+    keys = [jax.random.fold_in(run_root, run) for run in range(config.runs)]
+    if not config.batch_runs:
+        for key in keys:
+            start = time.perf_counter()
+            poses, joints, info = track(tracker, key, scene)
+            yield poses, joints, info, time.perf_counter() - start
+        return
+    start = time.perf_counter()
+    poses, joints, infos = track_runs(tracker, jax.numpy.stack(keys), scene)
+    seconds = (time.perf_counter() - start) / config.runs
+    for run in range(config.runs):
+        yield poses[run], joints[run], jax.tree.map(lambda x, r=run: x[r], infos), seconds
 
 
 def run_experiment(train, validation, test, config: ExperimentConfig | None = None, *, out_dir=None,
@@ -161,10 +180,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                            for name in ("acceleration", "initial_speed", "displacement_noise")}
                 results["velocity"][method] = {"entries": moving.size, **spreads}
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
-            for run in range(config.runs):
-                start = time.perf_counter()
-                poses, joints, info = track(tracker, jax.random.fold_in(run_roots[method], run), scene)
-                times.append(time.perf_counter() - start)
+            for run, (poses, joints, info, seconds) in enumerate(_runs(tracker, run_roots[method], scene, config)):
+                times.append(seconds)
                 errors.append(float(mean_joint_error_mm(joints, scene.truth_joints)))
                 curves.append(np.asarray(per_frame_error_mm(joints, scene.truth_joints)))
                 group_errors.append({g: float(v) for g, v in per_group_error_mm(joints, scene.truth_joints, groups).items()})
@@ -182,6 +199,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                 "per_group_error_mm": {g: float(np.mean([e[g] for e in group_errors])) for g in groups},
                 "frames_per_second": float(scene.num_frames / np.median(steady)),
                 "first_run_s (includes compile)": float(times[0]),
+                # compile time: the first run less a steady one (None with one run, or batched runs)
+                "compile_s": float(times[0] - np.median(steady)) if len(times) > 1 and not config.batch_runs else None,
                 "mean_ess": float(np.mean(ess)),
                 "degenerate_fraction": float(np.mean(degenerate)),
                 "likelihood_evaluations_per_frame": config.budget,

@@ -19,6 +19,7 @@ from ._pipeline import motion_data as motion_data
 from ._pipeline import prepare_test as prepare_test
 from ._pipeline import sequence_poses as sequence_poses
 from ._pipeline import track as track
+from ._pipeline import track_runs as track_runs
 from ._pipeline import track_sequence as track_sequence
 from ._pipeline import tracker_keys as tracker_keys
 from ._registry import GRADIENT_COST as GRADIENT_COST

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._custom_types import PRNGKeyArray
+from .._custom_types import Array, Key, PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
 from ..camera import check_in_view
@@ -216,6 +216,20 @@ def track(tracker, key: PRNGKeyArray, scene: TestScene, *, chunk_frames: int | N
     report = None if on_chunk is None else (lambda frames_done, info: on_chunk(*estimates(info)))
     _, info = run_filter(tracker, key, scene.initial_pose, scene.observations, chunk_frames=chunk_frames, on_chunk=report)
     return *estimates(info), info
+
+
+def track_runs(tracker, keys: Key[Array, " runs"], scene: TestScene):
+    """Several runs of a tracker on a prepared scene in one compiled call: ``run_filter`` vmapped
+    over ``keys`` (R,). Run r equals ``track(tracker, keys[r], scene)`` up to float rounding.
+
+    Returns:
+        ``(poses (R, T, D), joints (R, T, J, 3), infos)``: float64 estimates and the per-frame
+        ``StepInfo`` with a leading run axis.
+    """
+    _, info = jax.vmap(run_filter, in_axes=(None, 0, None, None))(tracker, keys, scene.initial_pose, scene.observations)
+    poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
+    joints = jax.vmap(lambda p: forward_kinematics(scene.body.skeleton, p))(jnp.asarray(poses, TRACKING_DTYPE))
+    return poses, np.asarray(joints, np.float64), info
 
 
 def tracker_keys(seed: int, index: int) -> tuple[PRNGKeyArray, PRNGKeyArray]:
