@@ -160,7 +160,7 @@ def _experiment(args) -> int:
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
         calibrate_shape=args.calibrate_shape, resolution=args.resolution, refine_steps=args.refine_steps,
-        velocity=args.velocity, manifold=args.manifold,
+        velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
     )
     from .io import check_folder
 
@@ -353,6 +353,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--budget", type=int, default=500, help="likelihood evaluations per frame (default: %(default)s)")
     experiment.add_argument("--layers", type=int, default=5, help="annealing layers of APF and GPAPF (default: %(default)s)")
     experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
+    experiment.add_argument("--batch-runs", action="store_true",
+                            help="track each method's runs in one compiled call (vmapped over the runs' keys)")
     experiment.add_argument("--latent-dim", type=int, default=2)
     experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
