@@ -7,7 +7,10 @@ protocol (every option of that script applies):
   which gives the estimate; the MRPF particles carry on to the next frame;
 - ``mrpf-anneal``: MRPF's transition as layer 0 of a 3-layer annealed filter (later layers
   perturb with eq. 29's random walk, shrinking), budget split in three;
-- ``latentpf-final``, ``latentpf-anneal``: the same two changes to LatentPF on the GPDM.
+- ``latentpf-final``, ``latentpf-anneal``: the same two changes to LatentPF on the GPDM;
+- ``mrpf-final100``, ``latentpf-final100``: the tracker keeps 400 particles and carries them on;
+  a final full-pose layer of 100 particles, drawn from them by weight, gives the estimate (the
+  split of GPAPF's budget, 4 x 100 + 100).
 
     taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
@@ -19,10 +22,13 @@ from __future__ import annotations
 import os
 import sys
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
 
-from jaxtrack.dynamics import PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
-from jaxtrack.filters import APF, ProjectedMean
+from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
+from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
+from jaxtrack.likelihood import AbstractLikelihood
 from jaxtrack.tracking import TrackerRecipe, register_tracker
 
 FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
@@ -58,6 +64,40 @@ def _build_annealed(estimator=None):
     return build
 
 
+FINAL_PARTICLES = 100
+
+
+class SIRWithFinalLayer(AbstractFilter):
+    """SIR over ``num_particles``, then 001 Alg. 3's final full-pose layer on ``final_particles``
+    drawn from them by weight, for the estimate only (the SIR particles carry on)."""
+
+    dynamics: AbstractDynamics
+    likelihood: AbstractLikelihood
+    final: AbstractDynamics
+    num_particles: int = eqx.field(static=True)
+    final_particles: int = eqx.field(static=True)
+
+    def init(self, key, initial_pose) -> FilterState:
+        return SIR(self.dynamics, self.likelihood, self.num_particles).init(key, initial_pose)
+
+    def step(self, key, state, observation):
+        sir_key, draw_key, final_key = jax.random.split(key, 3)
+        state, info = SIR(self.dynamics, self.likelihood, self.num_particles).step(sir_key, state, observation)
+        drawn = jax.random.categorical(draw_key, state.log_weights, shape=(self.final_particles,))
+        poses = self.dynamics.to_pose(state.particles)[drawn]
+        refined, weights, _ = smc_layer(
+            tuple(jax.random.split(final_key)), poses, jnp.zeros(self.final_particles, poses.dtype), move=self.final.propose,
+            log_likelihood=lambda x: self.likelihood(self.final.to_pose(x), observation), resample=get_resampler("systematic"),
+            temper=lambda log_lik: choose_beta(log_lik, 0.5),
+        )
+        return state, eqx.tree_at(lambda i: i.estimate, info, WeightedMean()(weights, refined, self.final))
+
+
+def _build_final100(fitted, likelihood, budget):
+    dynamics, final = fitted
+    return SIRWithFinalLayer(dynamics, likelihood, final, budget.evaluations - FINAL_PARTICLES, FINAL_PARTICLES)
+
+
 VARIANTS = [
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
                   needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
@@ -67,6 +107,10 @@ VARIANTS = [
                   _build_final, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
     TrackerRecipe("latentpf-anneal", "LatentPF+anneal3", "LatentPF's GPDM step as layer 0 of three annealing layers", _latent,
                   _build_annealed(ProjectedMean), needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+    TrackerRecipe("mrpf-final100", "MRPF+final100", "MRPF on 400 particles, a 100-particle final full-pose layer for the estimate",
+                  _with_final(_mrpf), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+    TrackerRecipe("latentpf-final100", "LatentPF+final100", "LatentPF on 400 particles, a 100-particle final layer for the estimate",
+                  _with_final(_latent), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
 ]
 
 if __name__ == "__main__":

@@ -38,3 +38,12 @@ def shared_data():
     if not os.path.isdir(path):
         pytest.skip("../shared/data is absent")
     return path
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop each test module's compiled programs after it. A process that keeps every program of
+    the slow suite runs out of memory maps (vm.max_map_count is 65530 here) inside LLVM, which
+    aborts the whole run; the benchmarks clear their caches for the same reason."""
+    yield
+    jax.clear_caches()
