@@ -40,10 +40,12 @@ def shared_data():
     return path
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _release_compiled_programs():
-    """Drop each test module's compiled programs after it. A process that keeps every program of
+@pytest.fixture(autouse=True)
+def _release_compiled_programs(request):
+    """Drop the compiled programs after every slow test. A process that keeps every program of
     the slow suite runs out of memory maps (vm.max_map_count is 65530 here) inside LLVM, which
-    aborts the whole run; the benchmarks clear their caches for the same reason."""
+    aborts the whole run; the benchmarks clear their caches for the same reason. The default
+    suite keeps its programs: its modules share many of them, and clearing cost it 2.5 minutes."""
     yield
-    jax.clear_caches()
+    if request.node.get_closest_marker("slow") is not None:
+        jax.clear_caches()
