@@ -14,6 +14,8 @@ import argparse
 import json
 import time
 
+from bench_output import write_json
+
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -52,9 +54,7 @@ def main():
             }
         rows.append(row)
         print(json.dumps(row), flush=True)
-    if args.json:
-        with open(args.json, "w") as handle:
-            json.dump(rows, handle, indent=1)
+    write_json(rows, args.json)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,8 @@ import json
 import os
 import time
 
+from bench_output import write_json
+
 
 def timed(fn, *args, repeats):
     import jax
@@ -82,9 +84,7 @@ def main():
                "backend": jax.default_backend()}
         print(json.dumps(row), flush=True)
         rows.append(row)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+    write_json(rows, args.json)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ import json
 import os
 import time
 
+from bench_output import write_json
+
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -75,9 +77,7 @@ def main():
                        "device": jax.devices()[0].device_kind}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-    if args.json:
-        with open(args.json, "w") as handle:
-            json.dump(rows, handle, indent=1)
+    write_json(rows, args.json)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
+
+from bench_output import write_json
 
 BODY_FACTORS = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 
@@ -59,9 +60,7 @@ def main():
                          "sequences": {n: {m: {k: v[m][k] for k in ("error_mm_mean", "error_mm_std", "error_mm_per_run")}
                                            for m in args.methods} for n, v in results["sequences"].items()},
                          "shape_calibration": results["shape_calibration"]})
-    if args.json:
-        with open(args.json, "w") as handle:
-            json.dump(rows, handle, indent=1)
+    write_json(rows, args.json)
 
 
 if __name__ == "__main__":

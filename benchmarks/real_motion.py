@@ -22,9 +22,10 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import os
 import time
+
+from bench_output import write_json
 
 BODY_FACTORS = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 
@@ -126,9 +127,7 @@ def main():
                                     "velocity": config.velocity_of(m), "manifold": config.manifold_of(m)}
                                 for m in args.methods},
                 })
-                if args.json:
-                    with open(args.json, "w") as f:
-                        json.dump(rows, f, indent=1)
+                write_json(rows, args.json)
                 # Every experiment compiles its own trackers; keeping them all exhausted the
                 # process's memory maps (LLVM "Cannot allocate memory") after about ten.
                 jax.clear_caches()

@@ -1,0 +1,13 @@
+"""What every benchmark does with its figures besides printing them: ``--json PATH``."""
+
+from __future__ import annotations
+
+import json
+
+
+def write_json(rows, path: str | None) -> None:
+    """Write ``rows`` (JSON-serialisable) to ``path`` with indent 1; nothing when ``path`` is None.
+    Called after each row by the long benchmarks, so an interrupted run keeps what it measured."""
+    if path:
+        with open(path, "w") as handle:
+            json.dump(rows, handle, indent=1)
