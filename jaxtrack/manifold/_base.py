@@ -100,7 +100,8 @@ class AbstractManifold(eqx.Module):
 
     def fit(self, **options):
         """Maximise ``objective()`` over the ``trainable()`` leaves: ``fit_model(self, **options)``
-        (L-BFGS; options ``max_steps``, ``chunk``, ``tolerance``, ``progress``). Returns
+        (L-BFGS in one compiled loop; options ``max_steps``, ``tolerance``, ``target``,
+        ``progress``, ``report_every``). Returns
         ``(fitted_model, FitInfo)``."""
         from ._fit import fit_model
 

@@ -1,98 +1,181 @@
-"""Fitting a manifold model: maximise its objective with L-BFGS (optax), the whole update step
-jitted and run in chunks of a ``lax.scan`` so that progress can be shown between chunks."""
+"""Fitting a manifold model: maximise its objective with L-BFGS (optax, zoom line search), the
+whole optimisation one compiled ``lax.while_loop``: no host round-trip per step. Progress is
+shown by a host callback every ``report_every`` steps, and the convergence test and the guard
+against non-finite values run inside the loop."""
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 from typing import NamedTuple
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 import optax
+import threadpoolctl
 
 
 class FitInfo(NamedTuple):
-    """Outcome of a fit: the final objective (to be maximised), steps taken, and the trace."""
+    """Outcome of a fit.
+
+    Attributes:
+        objective: the final objective (to be maximised).
+        steps: L-BFGS iterations taken (and kept).
+        trace: (steps,) ``trace[i]`` is the objective at the parameters after step ``i``.
+        evaluations: objective-and-gradient evaluations, line-search trials included (the count
+            GPy's and SciPy's ``max_iters`` / ``maxfun`` limit).
+    """
 
     objective: float
     steps: int
     trace: np.ndarray
+    evaluations: int = 0
 
 
 _OPTIMISER = optax.lbfgs()
+_PROGRESS: dict[int, object] = {}  # fit id -> progress bar, for the host callback
+_FIT_IDS = itertools.count()
 
 
 def _loss(params, static):
     return -eqx.combine(params, static).objective()
 
 
+def _report(fit_id, step, objective):
+    bar = _PROGRESS.get(int(fit_id))
+    if bar is not None:
+        bar.update(int(step) - bar.n)
+        bar.set_postfix(objective=f"{float(objective):.6g}")
+
+
+def _all_finite(tree) -> jax.Array:
+    leaves = jax.tree_util.tree_leaves(tree)
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(leaf)) for leaf in leaves]))
+
+
+class _Carry(NamedTuple):
+    params: object
+    state: object
+    step: jax.Array  # steps kept
+    evaluations: jax.Array
+    value: jax.Array  # the loss at ``params``
+    checkpoint: jax.Array  # the loss at the last convergence check
+    done: jax.Array
+    trace: jax.Array  # (capacity,) loss after each kept step
+
+
 @eqx.filter_jit
-def _run_chunk(params, state, static, chunk: int):
-    """``chunk`` L-BFGS steps in one ``lax.scan``; module level, so repeated fits of the same
-    model class and shapes reuse the compilation (data and hyperparameters are traced)."""
+def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id, capacity: int, progress: bool):
+    """The whole L-BFGS run in one ``lax.while_loop``. ``max_steps``, ``tolerance`` and
+    ``check_every`` are traced, so fits of one model class and shapes share one compilation
+    whatever their step counts (``capacity``, the trace buffer, is the next power of two).
+
+    Stops after ``max_steps`` steps; when the loss improves by less than ``tolerance``
+    (relative) over ``check_every`` steps; when it reaches ``target`` (a loss); or before a
+    step whose loss or parameters are not finite (those are discarded)."""
 
     def loss(p):
         return _loss(p, static)
 
     value_and_grad = optax.value_and_grad_from_state(loss)
+    initial = loss(params)
+    dtype = jnp.result_type(initial)
 
-    def step(carry, _):
-        p, state = carry
-        value, grad = value_and_grad(p, state=state)
-        updates, state = _OPTIMISER.update(grad, state, p, value=value, grad=grad, value_fn=loss)
-        return (optax.apply_updates(p, updates), state), value
+    def cond(c: _Carry):
+        return (c.step < max_steps) & ~c.done
 
-    return jax.lax.scan(step, (params, state), None, length=chunk)
+    def body(c: _Carry):
+        value, grad = value_and_grad(c.params, state=c.state)
+        updates, state = _OPTIMISER.update(grad, c.state, c.params, value=value, grad=grad, value_fn=loss)
+        params = optax.apply_updates(c.params, updates)
+        new_value = optax.tree_utils.tree_get(state, "value")
+        trials = optax.tree_utils.tree_get(state, "num_linesearch_steps")
+        finite = jnp.isfinite(new_value) & _all_finite(params)
+        step = c.step + finite.astype(c.step.dtype)
+        check = finite & (step % check_every == 0)
+        stalled = check & (tolerance > 0) & (jnp.abs(c.checkpoint - new_value) <= tolerance * jnp.maximum(1.0, jnp.abs(new_value)))
+        keep = lambda new, old: jax.tree.map(lambda a, b: jnp.where(finite, a, b), new, old)  # noqa: E731
+        if progress:
+            jax.lax.cond(check | (step == max_steps), lambda: jax.debug.callback(_report, fit_id, step, -new_value), lambda: None)
+        return _Carry(
+            params=keep(params, c.params),
+            state=keep(state, c.state),
+            step=step,
+            evaluations=c.evaluations + trials,
+            value=jnp.where(finite, new_value, c.value),
+            checkpoint=jnp.where(check, new_value, c.checkpoint),
+            done=~finite | stalled | (new_value <= target),
+            trace=c.trace.at[c.step].set(jnp.where(finite, new_value, jnp.nan)),
+        )
+
+    start = _Carry(
+        params=params, state=_OPTIMISER.init(params), step=jnp.asarray(0), evaluations=jnp.asarray(2),  # ``initial``, and step 0's own
+        value=initial, checkpoint=initial, done=~jnp.isfinite(initial), trace=jnp.full((capacity,), jnp.nan, dtype),
+    )
+    end = jax.lax.while_loop(cond, body, start)
+    return end.params, end.value, end.step, end.evaluations, end.trace
 
 
-def _finite(tree) -> bool:
-    return all(bool(np.all(np.isfinite(np.asarray(leaf)))) for leaf in jax.tree_util.tree_leaves(tree))
-
-
-def fit_model(model, *, max_steps: int = 500, chunk: int = 50, tolerance: float = 1e-7, progress: bool = False):
+def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: float | None = None, progress: bool = False,
+              report_every: int = 50, blas_threads: int | None = 1, chunk: int | None = None):
     """Maximise ``model.objective()`` over the leaves ``model.trainable()`` marks.
 
     Args:
         max_steps: L-BFGS iterations at most (exactly this many unless it converges first).
-        chunk: iterations per jitted ``lax.scan`` (progress is reported between chunks).
-        tolerance: stop when a chunk improves the objective by less than this (relative).
+        tolerance: stop when ``report_every`` steps improve the objective by less than this
+            (relative); 0 runs all ``max_steps``.
+        target: stop as soon as the objective reaches this value (None: no target), e.g. to time
+            how long a fit takes to reach another optimiser's result.
+        progress: show a progress bar, updated by a host callback every ``report_every`` steps.
+        report_every: steps between progress reports and convergence checks.
+        blas_threads: threads the BLAS library under XLA's LAPACK calls (SciPy's OpenBLAS) may
+            use during the fit (``threadpoolctl``); None leaves it as it is. XLA runs its own
+            thread pool, and a LAPACK call inside it that starts one more per core
+            oversubscribes the cores: on 2 cores one BLAS thread made an N = 350 GP-LVM
+            gradient 2.6x faster and an N = 1000 one 1.5x.
+        chunk: the former name of ``report_every`` (the steps between checks).
 
     Returns:
         ``(fitted_model, FitInfo)``. Float64 is recommended (tests and defaults use it); in
-        float32 the Cholesky's adaptive jitter keeps the objective finite. Should a chunk's
-        objective or parameters turn non-finite anyway, the fit stops at the parameters before
-        that chunk (``FitInfo.steps`` counts the steps kept).
+        float32 the Cholesky's adaptive jitter keeps the objective finite. A step whose
+        objective or parameters are not finite ends the fit at the parameters before it: a fit
+        never returns NaNs.
     """
-    for name, value in (("max_steps", max_steps), ("chunk", chunk)):
+    report_every = report_every if chunk is None else chunk
+    checked = [("max_steps", max_steps), ("report_every", report_every)]
+    checked += [] if blas_threads is None else [("blas_threads", blas_threads)]
+    for name, value in checked:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ValueError(f"fit_model: {name} must be a positive integer, got {value!r}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise ValueError(f"fit_model: tolerance must be a finite number >= 0, got {tolerance!r}")
+    if target is not None and not np.isfinite(target):
+        raise ValueError(f"fit_model: target must be a finite number or None, got {target!r}")
     params, static = eqx.partition(model, model.trainable())
-    state = _OPTIMISER.init(params)
-    trace, steps = [], 0
-    bar = None
+    fit_id = next(_FIT_IDS)
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
-    previous = None
-    while steps < max_steps:
-        length = min(chunk, max_steps - steps)  # exactly max_steps in all
-        (candidate, candidate_state), values = _run_chunk(params, state, static, length)
-        values = np.asarray(values)
-        if not np.all(np.isfinite(values)) or not _finite(candidate):
-            break  # keep the last chunk's finite parameters: a fit never returns NaNs
-        params, state = candidate, candidate_state
-        trace.append(-values)
-        steps += length
+        _PROGRESS[fit_id] = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
+    capacity = 1 << (max_steps - 1).bit_length()
+    limits = contextlib.nullcontext() if blas_threads is None else threadpoolctl.threadpool_limits(blas_threads, user_api="blas")
+    try:
+        with limits:
+            params, value, steps, evaluations, trace = _fit_loop(
+                params, static, jnp.asarray(max_steps), jnp.asarray(tolerance, float),
+                jnp.asarray(-np.inf if target is None else -target, float), jnp.asarray(report_every),
+                jnp.asarray(fit_id), capacity, progress,
+            )
+            steps = int(steps)  # waits for the fit, inside the limits
+            jax.effects_barrier()
+    finally:
+        bar = _PROGRESS.pop(fit_id, None)
         if bar is not None:
-            bar.update(length)
-            bar.set_postfix(objective=f"{-values[-1]:.4g}")
-        current = float(values[-1])
-        if previous is not None and abs(previous - current) <= tolerance * max(1.0, abs(current)):
-            break
-        previous = current
-    if bar is not None:
-        bar.close()
+            bar.close()
     fitted = eqx.combine(params, static)
-    objective = float(fitted.objective())
-    return fitted, FitInfo(objective=objective, steps=steps, trace=np.concatenate(trace) if trace else np.array([objective]))
+    objective = -float(value)
+    trace = -np.asarray(trace)[:steps]
+    return fitted, FitInfo(objective=objective, steps=steps, trace=trace if steps else np.array([objective]),
+                           evaluations=int(evaluations))

@@ -96,31 +96,98 @@ def linear_rbf_kernel(a1=1.0, a2=1.0, a3=1e-2, noise=1e-2, dtype=jnp.float64) ->
     return LinearRBFKernel(*values)
 
 
+def _jittered_factor(K: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """The first finite Cholesky factor of ``K + JITTER_LADDER[r] * mean(diag K) * I``, r = 0,
+    1, ...: one factorisation unless it fails (a ``lax.while_loop`` tries the next rung)."""
+    scale = jnp.mean(jnp.diag(K))
+    eye = jnp.eye(K.shape[0], dtype=K.dtype)
+    ladder = jnp.asarray(JITTER_LADDER, K.dtype)
+
+    def cond(carry):
+        rung, factor = carry
+        return ~jnp.all(jnp.isfinite(factor)) & (rung < len(JITTER_LADDER) - 1)
+
+    def body(carry):
+        rung = carry[0] + 1
+        return rung, jnp.linalg.cholesky(K + ladder[rung] * scale * eye)
+
+    return jax.lax.while_loop(cond, body, (jnp.asarray(0), jnp.linalg.cholesky(K)))[1]
+
+
+@jax.custom_jvp
 def safe_cholesky(K: Float[Array, "n n"]) -> Float[Array, "n n"]:
     """Cholesky factor with adaptive jitter: the first rung of ``JITTER_LADDER`` (times the mean
-    diagonal) that gives a finite factor. Duplicated training frames therefore do not break it.
-    Works under jit and grad: each further rung is tried inside a ``lax.cond`` only when the
-    previous factor failed, so the usual cost is one factorisation."""
-    n = K.shape[0]
-    scale = jnp.mean(jnp.diag(K))
-    eye = jnp.eye(n, dtype=K.dtype)
+    diagonal) that gives a finite factor, so duplicated training frames do not break it. Works
+    under jit, vmap and both modes of autodiff; the derivative is that of the factorisation of
+    ``K + jitter I`` with the jitter held constant (the rule JAX's ``cholesky`` uses,
+    ``dL = L Phi(L^-1 dK L^-T)``, Phi the lower triangle with half the diagonal)."""
+    return _jittered_factor(K)
 
-    def attempt(rung: int):
-        factor = jnp.linalg.cholesky(K + JITTER_LADDER[rung] * scale * eye)
-        if rung == len(JITTER_LADDER) - 1:
-            return factor
-        return jax.lax.cond(jnp.all(jnp.isfinite(factor)), lambda: factor, lambda: attempt(rung + 1))
 
-    return attempt(0)
+@safe_cholesky.defjvp
+def _safe_cholesky_jvp(primals, tangents):
+    (K,), (dK,) = primals, tangents
+    L = _jittered_factor(K)
+    dK = 0.5 * (dK + dK.T)  # the factorisation reads a symmetric matrix
+    inner = jax.scipy.linalg.solve_triangular(L, jax.scipy.linalg.solve_triangular(L, dK, lower=True).T, lower=True).T
+    phi = jnp.tril(inner) - 0.5 * jnp.diag(jnp.diag(inner))
+    return L, L @ phi
 
 
 def gaussian_log_marginal(K: Float[Array, "n n"], Y: Float[Array, "n d"], columns: Float[Array, " d"] | None = None) -> Float[Array, ""]:
     """``sum_i ln N(Y[:, i] | 0, K) = -DN/2 ln 2pi - D/2 ln|K| - 1/2 tr(K^-1 Y Y^T)`` (000 eq. 15);
-    with ``columns`` (D,) of 0/1, only the columns marked 1 count."""
-    n, d = Y.shape
-    L = safe_cholesky(K)
-    alpha = jax.scipy.linalg.cho_solve((L, True), Y)
+    with ``columns`` (D,) of 0/1, only the columns marked 1 count.
+
+    Differentiable in ``K`` and ``Y`` in both modes, by the matrix-calculus rule of a Gaussian
+    log-density (``d/dK = 1/2 (K^-1 Y Y^T K^-1 - D K^-1)``, ``d/dY = -K^-1 Y``; Rasmussen and
+    Williams 2006 eq. 5.9) instead of differentiating through the Cholesky factorisation: one
+    triangular inverse instead of three N x N triangular solves, half the cost of a gradient.
+    The models' objectives are still differentiated by autodiff through everything else
+    (kernels, back-constraints, dynamics, priors), as JAX differentiates through its own
+    ``cholesky`` by a rule.
+    """
+    if columns is None:
+        columns = jnp.ones(Y.shape[1], Y.dtype)
+    return _log_marginal(K, Y, jnp.asarray(columns, Y.dtype))
+
+
+def _log_marginal_parts(K, Y, columns):
+    n = Y.shape[0]
+    L = safe_cholesky(K)  # differentiated only for second derivatives: the rule below is the first
+    alpha = jax.scipy.linalg.cho_solve((L, True), Y) * columns
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
-    count = d if columns is None else jnp.sum(columns)
-    fit = Y * alpha if columns is None else Y * alpha * columns
-    return -0.5 * count * n * jnp.log(2 * jnp.pi) - 0.5 * count * logdet - 0.5 * jnp.sum(fit)
+    count = jnp.sum(columns)
+    value = -0.5 * count * n * jnp.log(2 * jnp.pi) - 0.5 * count * logdet - 0.5 * jnp.sum(Y * alpha)
+    return value, L, alpha, count
+
+
+def lower_triangular_inverse(L: Float[Array, "n n"], *, block: int = 256) -> Float[Array, "n n"]:
+    """``L^-1`` of a lower-triangular matrix by 2 x 2 block recursion,
+    ``[[A, 0], [C, B]]^-1 = [[A^-1, 0], [-B^-1 C A^-1, B^-1]]``: its work is matrix products
+    (which XLA runs at several times the rate of a triangular solve with N right-hand sides),
+    and a triangular solve only for blocks of at most ``block`` rows."""
+    n = L.shape[0]
+    if n <= block:
+        return jax.scipy.linalg.solve_triangular(L, jnp.eye(n, dtype=L.dtype), lower=True)
+    h = n // 2
+    A_inv = lower_triangular_inverse(L[:h, :h], block=block)
+    B_inv = lower_triangular_inverse(L[h:, h:], block=block)
+    corner = -B_inv @ (L[h:, :h] @ A_inv)
+    return jnp.block([[A_inv, jnp.zeros((h, n - h), L.dtype)], [corner, B_inv]])
+
+
+@jax.custom_jvp
+def _log_marginal(K, Y, columns):
+    return _log_marginal_parts(K, Y, columns)[0]
+
+
+@_log_marginal.defjvp
+def _log_marginal_jvp(primals, tangents):
+    K, Y, columns = primals
+    dK, dY, _ = tangents  # the column mask is data, not a parameter
+    value, L, alpha, count = _log_marginal_parts(K, Y, columns)
+    inverse_factor = lower_triangular_inverse(L)
+    K_inverse = inverse_factor.T @ inverse_factor
+    weights = jax.lax.optimization_barrier(0.5 * (alpha @ alpha.T - count * K_inverse))  # one N x N pass, not one per use
+    tangent = jnp.sum(weights * dK) - jnp.sum(alpha * dY)
+    return value, tangent
