@@ -234,3 +234,36 @@ def test_tracking_at_a_lower_resolution():
     np.testing.assert_array_equal(downsample_silhouettes(np.array([[0, 255, 255, 255], [0, 0, 255, 0]]), 2, 1), [[0.0, 1.0]])
     with pytest.raises(ValueError, match="cannot resample 160x120 images to 100x60"):
         prepare_test(fine, "fine", key=jax.random.key(2), resolution=(100, 60))
+
+
+@pytest.mark.slow
+def test_batched_sequences_equal_separate_tracks():
+    """``track_sequences``: equal-length sequences of one subject in one rig, tracked in one
+    vmapped call, give each sequence's own ``track`` (float32: equal to rounding)."""
+    from jaxtrack.camera import default_rig
+    from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
+    from jaxtrack.tracking import prepare_test, track, track_sequences
+
+    rig = default_rig(40, 30, dtype=jnp.float64)
+
+    def scene(subject, tag, frames=4):
+        motion = generate_motion("walk", subject, num_frames=frames, fps=30.0, key=jax.random.key(tag), dtype=jnp.float64)
+        built = build_scene(jax.random.key(100 + tag), motion, rig, SilhouetteNoise())
+        return motion, prepare_test(built, f"walk {tag}", key=jax.random.key(tag))
+
+    (motion, first), (_, second) = scene("S1", 0), scene("S1", 1)
+    tracker = SIR(fit_pose_random_walk([np.asarray(motion.pose)], dtype=jnp.float32), first.likelihood, 60)
+    keys = jax.random.split(jax.random.key(7), 2)
+    poses, joints, info = track_sequences(tracker, keys, [first, second])
+    assert poses.shape == (2, 4, motion.pose.shape[1]) and joints.shape[:2] == (2, 4) and info.ess.shape == (2, 4)
+    for s, scene_s in enumerate((first, second)):
+        alone, alone_joints, _ = track(tracker, keys[s], scene_s)
+        np.testing.assert_allclose(poses[s], alone, atol=1e-3)
+        np.testing.assert_allclose(joints[s], alone_joints, atol=1e-3)
+    assert np.abs(poses[0] - poses[1]).max() > 1e-2  # two sequences, not one twice
+    with pytest.raises(ValueError, match="2 keys for 1 scenes"):
+        track_sequences(tracker, keys, [first])
+    with pytest.raises(ValueError, match="another body than scene 0"):
+        track_sequences(tracker, keys, [first, scene("S2", 2)[1]])
+    with pytest.raises(ValueError, match="observations"):
+        track_sequences(tracker, keys, [first, scene("S1", 3, frames=5)[1]])

@@ -21,6 +21,7 @@ from ._pipeline import sequence_poses as sequence_poses
 from ._pipeline import track as track
 from ._pipeline import track_runs as track_runs
 from ._pipeline import track_sequence as track_sequence
+from ._pipeline import track_sequences as track_sequences
 from ._pipeline import tracker_keys as tracker_keys
 from ._registry import GRADIENT_COST as GRADIENT_COST
 from ._registry import MANIFOLD_KINDS as MANIFOLD_KINDS

@@ -232,6 +232,40 @@ def track_runs(tracker, keys: Key[Array, " runs"], scene: TestScene):
     return poses, np.asarray(joints, np.float64), info
 
 
+def track_sequences(tracker, keys: Key[Array, " sequences"], scenes):
+    """Several test sequences of equal length in one compiled call: ``run_filter`` vmapped over
+    the sequences' keys (S,), initial poses and observations. Sequence s equals
+    ``track(tracker, keys[s], scenes[s])`` up to float rounding. The tracker's likelihood scores
+    them all, so the scenes must share its body and cameras: one subject filmed by one rig.
+
+    Returns:
+        ``(poses (S, T, D), joints (S, T, J, 3), infos)``: float64 estimates and the per-frame
+        ``StepInfo`` with a leading sequence axis.
+
+    Raises:
+        ValueError: if ``keys`` and ``scenes`` differ in number, or the scenes differ in length,
+            image size, pose size or body.
+    """
+    scenes = list(scenes)
+    if not scenes or len(scenes) != len(keys):
+        raise ValueError(f"track_sequences: {len(keys)} keys for {len(scenes)} scenes (one key per scene, at least one)")
+    first = scenes[0]
+    for index, scene in enumerate(scenes[1:], start=1):
+        for what, a, b in (("observations (frames, views, height, width)", scene.observations.shape, first.observations.shape),
+                           ("initial pose", scene.initial_pose.shape, first.initial_pose.shape)):
+            if a != b:
+                raise ValueError(f"track_sequences: scene {index} has {what} {a}, scene 0 {b}: batched sequences must match")
+        if not bool(eqx.tree_equal(scene.body, first.body)):
+            raise ValueError(f"track_sequences: scene {index} has another body than scene 0; the tracker's likelihood scores all "
+                             "the sequences with one body, so track it separately")
+    initial = jnp.stack([scene.initial_pose for scene in scenes])
+    observations = jnp.stack([scene.observations for scene in scenes])
+    _, info = jax.vmap(run_filter, in_axes=(None, 0, 0, 0))(tracker, keys, initial, observations)
+    poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
+    joints = jax.vmap(lambda p: forward_kinematics(first.body.skeleton, p))(jnp.asarray(poses, TRACKING_DTYPE))
+    return poses, np.asarray(joints, np.float64), info
+
+
 def tracker_keys(seed: int, index: int) -> tuple[PRNGKeyArray, PRNGKeyArray]:
     """``(fit key, run root)`` of the tracker at registry position ``index``: run r uses
     ``fold_in(run_root, r)``."""
