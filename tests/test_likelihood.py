@@ -234,3 +234,26 @@ def test_shape_calibration_recovers_known_radii():
     empty[1, 2] = 0
     with pytest.raises(ValueError, match="frame 1, view 2 is empty"):
         calibrate_shape(likelihood, scene.pose[frames], empty)
+
+
+def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
+    """320x240 silhouettes block-averaged to 80x60 (the cameras rescaled; what ``--resolution``
+    tracks at) give 000 eq. 12's cost of every 320x240 pixel to within a small bias, and rank
+    poses the same way: measured around a noisy walk's first frame (``benchmarks/
+    bench_resolution.py`` measures it on 200 poses and the tracking error it gives)."""
+    from jaxtrack.camera import default_rig
+    from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
+    from jaxtrack.tracking import prepare_test
+
+    motion = generate_motion("walk", "S1", num_frames=1, fps=60.0, key=jax.random.key(0))
+    scene = build_scene(jax.random.key(1), motion, default_rig(320, 240, num_views=3), SilhouetteNoise())
+    fine = prepare_test(scene, "walk", key=jax.random.key(2), window=None)
+    coarse = prepare_test(scene, "walk", key=jax.random.key(2), window=None, resolution=(80, 60))
+    truth = fine.initial_pose
+    spread = jnp.full(truth.shape, 0.1, truth.dtype).at[:3].set(0.03)
+    poses = truth + spread * jax.random.normal(jax.random.key(3), (48, truth.shape[0]), truth.dtype)
+    cost_fine = -np.asarray(fine.likelihood(poses, fine.observations[0])) / float(fine.likelihood.scale)
+    cost_coarse = -np.asarray(coarse.likelihood(poses, coarse.observations[0])) / float(coarse.likelihood.scale)
+    bias = cost_coarse - cost_fine
+    assert abs(float(bias.mean())) < 0.05 and float(bias.std()) < 0.03, (bias.mean(), bias.std())
+    assert np.corrcoef(cost_coarse, cost_fine)[0, 1] > 0.97

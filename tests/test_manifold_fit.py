@@ -12,7 +12,7 @@ import scipy.optimize
 from jax.flatten_util import ravel_pytree
 
 from jaxtrack.data import generate_motion
-from jaxtrack.manifold import fit_model, gaussian_log_marginal, make_gpdm, make_gplvm, safe_cholesky
+from jaxtrack.manifold import fit_model, gaussian_log_marginal, make_gplvm, safe_cholesky
 
 
 def _plain_log_marginal(K, Y, columns):
@@ -140,7 +140,7 @@ def test_fit_stops_at_a_target_objective():
     model = _small_gplvm()
     _, full = fit_model(model, max_steps=60, tolerance=0.0)
     target = float(full.trace[29])
-    fitted, info = fit_model(model, max_steps=60, tolerance=0.0, target=target)
+    _, info = fit_model(model, max_steps=60, tolerance=0.0, target=target)
     assert info.steps == 30 and info.objective >= target and info.objective == pytest.approx(full.trace[29], rel=1e-12)
     with pytest.raises(ValueError, match="target must be a finite number"):
         fit_model(model, target=float("inf"))
