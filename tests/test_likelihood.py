@@ -236,6 +236,7 @@ def test_shape_calibration_recovers_known_radii():
         calibrate_shape(likelihood, scene.pose[frames], empty)
 
 
+@pytest.mark.slow
 def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
     """320x240 silhouettes block-averaged to 80x60 (the cameras rescaled; what ``--resolution``
     tracks at) give 000 eq. 12's cost of every 320x240 pixel to within a small bias, and rank
@@ -245,10 +246,10 @@ def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
     from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
     from jaxtrack.tracking import prepare_test
 
-    motion = generate_motion("walk", "S1", num_frames=1, fps=60.0, key=jax.random.key(0))
+    motion = generate_motion("walk", "S1", num_frames=2, fps=60.0, key=jax.random.key(0))
     scene = build_scene(jax.random.key(1), motion, default_rig(320, 240, num_views=3), SilhouetteNoise())
-    fine = prepare_test(scene, "walk", key=jax.random.key(2), window=None)
-    coarse = prepare_test(scene, "walk", key=jax.random.key(2), window=None, resolution=(80, 60))
+    fine = prepare_test(scene, "walk", key=jax.random.key(2), frames=1, window=None)
+    coarse = prepare_test(scene, "walk", key=jax.random.key(2), frames=1, window=None, resolution=(80, 60))
     truth = fine.initial_pose
     spread = jnp.full(truth.shape, 0.1, truth.dtype).at[:3].set(0.03)
     poses = truth + spread * jax.random.normal(jax.random.key(3), (48, truth.shape[0]), truth.dtype)
