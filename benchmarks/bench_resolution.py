@@ -1,15 +1,21 @@
-"""Tracking 320x240 silhouettes at a coarse level (block-averaged to ``--coarse``, cameras
-rescaled: ``ExperimentConfig(resolution=...)``) against scoring every pixel at 320x240: the error
-and frames per second of the same runs (same keys), and the bias of the coarse cost.
+"""Tracking 320x240 silhouettes without paying for every pixel, against scoring every pixel (of
+the likelihood's window) at 320x240: the error and frames per second of the same runs (same
+keys), and the bias of each cheap cost against the dense one. The cheap likelihoods:
+
+- sampled: 000 eq. 12 on ``--samples`` stratified pixels per view and frame
+  (``ExperimentConfig(pixel_samples=...)``, ``jaxtrack.likelihood.SampledSilhouetteLikelihood``);
+- coarse: the silhouettes block-averaged to ``--coarse`` and the cameras rescaled
+  (``ExperimentConfig(resolution=...)``).
 
     taskset -c 0,1 python benchmarks/bench_resolution.py --json resolution.json
 
 Scenes: the demo's synthetic S1 walk and S2 jog (40 frames, 60 Hz) rendered at ``--width`` x
 ``--height`` with background-subtraction noise in ``--views`` cameras of the default rig;
 manifold and dynamics fitted as in the demo. Bias: for ``--particles`` poses scattered around the
-truth of the walk's first frame, the cost of 000 eq. 12 (mean over views) at the coarse level
-against the dense one at full resolution: mean and sd of the difference, and their correlation
-(what the weights depend on is the ranking).
+truth of the walk's first frame, the cost of 000 eq. 12 (mean over views) of each cheap
+likelihood against the dense one at full resolution, over ``--draws`` pixel samples: the mean
+difference, its sd across the poses within a draw (the part that changes the weights; a shift
+common to every pose does not) and their correlation.
 """
 
 from __future__ import annotations
@@ -25,6 +31,10 @@ def main():
     parser.add_argument("--width", type=int, default=320)
     parser.add_argument("--height", type=int, default=240)
     parser.add_argument("--coarse", default="80x60", help="the level tracked at, WxH (must divide the image size)")
+    parser.add_argument("--samples", type=int, nargs="+", default=[2048], help="sample pixels per view and frame")
+    parser.add_argument("--likelihoods", nargs="+", choices=["every", "sampled", "coarse"], default=["every", "sampled", "coarse"],
+                        help="which likelihoods to track with")
+    parser.add_argument("--draws", type=int, default=5, help="pixel samples drawn for the bias measurement")
     parser.add_argument("--views", type=int, default=3)
     parser.add_argument("--methods", nargs="+", default=["mrpf"])
     parser.add_argument("--budget", type=int, default=500)
@@ -44,6 +54,7 @@ def main():
     from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion, motion_sequence
     from jaxtrack.demo import DEMO_TEST, DEMO_TRAINING, DEMO_VALIDATION
     from jaxtrack.experiment import ExperimentConfig, run_experiment
+    from jaxtrack.likelihood import SampledSilhouetteLikelihood, sample_frames
     from jaxtrack.tracking import prepare_test
 
     coarse = tuple(int(v) for v in args.coarse.split("x"))
@@ -60,30 +71,41 @@ def main():
     names = {"test": [f"{s} {g}" for g, s in DEMO_TEST]}
 
     rows = []
-    # The bias of the coarse cost against every pixel, around the walk's first frame.
+    # The bias of each cheap cost against every pixel, around the walk's first frame.
     fine = prepare_test(test[0], "walk", key=key, frames=1, window=None)
     low = prepare_test(test[0], "walk", key=key, frames=1, window=None, resolution=coarse)
     truth = jnp.asarray(fine.initial_pose)
     sigma = jnp.full(truth.shape, 0.1, truth.dtype).at[:3].set(0.03)
     poses = truth + sigma * jax.random.normal(jax.random.fold_in(key, 9), (args.particles, truth.shape[0]), truth.dtype)
-    scale_fine, scale_low = float(fine.likelihood.scale), float(low.likelihood.scale)
-    cost_fine = -np.asarray(fine.likelihood(poses, fine.observations[0])) / scale_fine
-    cost_low = -np.asarray(low.likelihood(poses, low.observations[0])) / scale_low
-    difference = cost_low - cost_fine
-    rows.append({"what": "cost bias", "image": f"{args.width}x{args.height}", "coarse": args.coarse, "views": args.views,
-                 "particles": args.particles, "fine_cost_mean": float(cost_fine.mean()), "fine_cost_sd": float(cost_fine.std()),
-                 "bias_mean": float(difference.mean()), "bias_sd": float(difference.std()),
-                 "correlation": float(np.corrcoef(cost_low, cost_fine)[0, 1])})
-    print(json.dumps(rows[-1]), flush=True)
+    scale = float(fine.likelihood.scale)
+    cost_fine = -np.asarray(fine.likelihood(poses, fine.observations[0])) / scale
+    cheap = {f"coarse {args.coarse}": [-np.asarray(low.likelihood(poses, low.observations[0])) / scale]}
+    sampled = SampledSilhouetteLikelihood.from_dense(fine.likelihood)
+    for samples in args.samples:
+        draws = [sample_frames(jax.random.key(draw), fine.observations, samples=samples) for draw in range(args.draws)]
+        cheap[f"sampled {samples}"] = [-np.asarray(sampled(poses, jax.tree.map(lambda x: x[0], d))) / scale for d in draws]
+    for what, costs in cheap.items():
+        difference = np.stack(costs) - cost_fine
+        rows.append({"what": "cost bias", "likelihood": what, "image": f"{args.width}x{args.height}", "views": args.views,
+                     "particles": args.particles, "draws": len(costs), "fine_cost_mean": float(cost_fine.mean()),
+                     "fine_cost_sd": float(cost_fine.std()), "bias_mean": float(difference.mean()),
+                     "bias_sd_within_draw": float(difference.std(axis=1).mean()),
+                     "bias_mean_sd_across_draws": float(difference.mean(axis=1).std()),
+                     "correlation": float(np.mean([np.corrcoef(c, cost_fine)[0, 1] for c in costs]))})
+        print(json.dumps(rows[-1]), flush=True)
     write_json(rows, args.json)
 
-    for resolution in (None, coarse):
-        config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, resolution=resolution)
+    settings = [("every", "every pixel", {}), *(("sampled", f"sampled {n}", {"pixel_samples": n}) for n in args.samples),
+                ("coarse", f"coarse {args.coarse}", {"resolution": coarse})]
+    for kind, label, options in settings:
+        if kind not in args.likelihoods:
+            continue
+        config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, **options)
         results = run_experiment(train, validation, test, config, names=names, progress=False, animations=False)
         for name, per_method in results["sequences"].items():
             for method, r in per_method.items():
                 rows.append({"what": "tracking", "sequence": name, "method": method,
-                             "tracked_at": "x".join(map(str, resolution)) if resolution else f"{args.width}x{args.height}",
+                             "likelihood": label, "image": f"{args.width}x{args.height}",
                              "views": args.views, "budget": args.budget, "runs": args.runs,
                              "error_mm_mean": r["error_mm_mean"], "error_mm_per_run": r["error_mm_per_run"],
                              "frames_per_second": r["frames_per_second"], "compile_s": r.get("compile_s")})

@@ -4,8 +4,10 @@ use it (every frame inside one jitted ``lax.scan``), and the peak memory of a la
     taskset -c 0,1 python benchmarks/bench_scaling.py --json scaling.json --plot docs/figures/likelihood_scaling.png
 
 Three sweeps from a base of 500 particles, 4 views, 80x60 (float32, the windowed likelihood):
-particles 100..2000; views 1..4 (the default rig's first cameras); images 80x60 .. 320x240 (the
-same cameras, intrinsics rescaled). Each point: compile time (``jit(...).lower(...).compile()``) and
+particles 100..2000; views 1..4 (the default rig's first cameras); images 80x60 .. 640x480 (the
+same cameras, intrinsics rescaled), with every pixel of the window and with ``--samples``
+stratified sample pixels per view (``SampledSilhouetteLikelihood``; the per-frame draw is
+made once before the scan, as ``prepare_test`` does, and not timed). Each point: compile time (``jit(...).lower(...).compile()``) and
 the median per-frame time of ``--repeats`` scans over ``--frames`` frames. Peak memory for
 ``--memory-particles`` particles x 4 views at 160x120: XLA's own count for the compiled scan
 (arguments, outputs and temporaries) and the process's peak resident set.
@@ -42,12 +44,13 @@ def _first_views(rig, views):
                      image_size=rig.image_size[:views], names=rig.names[:views])
 
 
-def measure(particles, views, width, height, frames, repeats, key):
-    """Compile seconds, median seconds per frame, and XLA's memory count (bytes) of the scan."""
+def measure(particles, views, width, height, frames, repeats, key, samples=None):
+    """Compile seconds, median seconds per frame, and XLA's memory count (bytes) of the scan
+    (``samples``: the likelihood on that many sample pixels per view instead)."""
     import jax
     import jax.numpy as jnp
 
-    from jaxtrack.likelihood import check_silhouettes, make_silhouette_likelihood
+    from jaxtrack.likelihood import SampledSilhouetteLikelihood, check_silhouettes, make_silhouette_likelihood, sample_frames
 
     built, rig = scene(width, height, views, frames, key)
     observed = jnp.moveaxis(jnp.asarray(check_silhouettes(built.silhouettes, rig)), 1, 0)  # (T, C, H, W)
@@ -55,6 +58,9 @@ def measure(particles, views, width, height, frames, repeats, key):
     sigma = jnp.full(truth.shape[1:], 0.1, jnp.float32).at[:3].set(0.03)
     poses = truth[:, None] + sigma * jax.random.normal(jax.random.fold_in(key, 2), (frames, particles, truth.shape[1]))
     likelihood = make_silhouette_likelihood(built.body(), rig, silhouettes=jnp.moveaxis(observed, 0, 1))
+    if samples is not None:
+        likelihood = SampledSilhouetteLikelihood.from_dense(likelihood)
+        observed = jax.block_until_ready(sample_frames(jax.random.fold_in(key, 3), observed, samples=samples))
 
     def scanned(poses, frames):
         return jax.lax.scan(lambda c, xs: (c, likelihood.log_likelihood(*xs)), 0, (poses, frames))[1]
@@ -74,7 +80,7 @@ def measure(particles, views, width, height, frames, repeats, key):
         totals.append(time.perf_counter() - start)
     per_frame = statistics.median(totals) / frames
     return {"particles": particles, "views": views, "image": f"{width}x{height}", "pixels": width * height,
-            "window": list(likelihood.window) if likelihood.window else None,
+            "window": list(likelihood.window) if getattr(likelihood, "window", None) else None, "samples": samples,
             "compile_s": compile_s, "ms_per_frame": 1000 * per_frame,
             "particle_views_per_s": particles * views / per_frame, "xla_bytes": peak_bytes}
 
@@ -88,18 +94,26 @@ def plot(rows, path):
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
     labels = ("particles (4 views, 80x60)", "views (500 particles, 80x60)", "pixels per view (500 particles, 4 views)")
     for ax, sweep, label in zip(axes, ("particles", "views", "pixels"), labels):
-        points = sorted((r[sweep], r["ms_per_frame"]) for r in rows if r["sweep"] == sweep)
-        xs, ys = zip(*points)
-        ax.plot(xs, ys, "o-")
+        for name in (sweep, sweep + " sampled"):
+            chosen = [r for r in rows if r["sweep"] == name]
+            if not chosen:
+                continue
+            xs, ys = zip(*sorted((r[sweep], r["ms_per_frame"]) for r in chosen))
+            samples = chosen[0].get("samples")
+            ax.plot(xs, ys, "o-", label="every pixel of the window" if samples is None else f"{samples} sample pixels per view")
         ax.set_xlabel(label)
         ax.set_ylabel("ms per frame (in lax.scan)")
-        ax.set_ylim(bottom=0)
+        if sweep != "pixels":
+            ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         if sweep == "pixels":
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.legend(fontsize=8)
             for r in rows:
                 if r["sweep"] == "pixels":
                     ax.annotate(r["image"], (r["pixels"], r["ms_per_frame"]), textcoords="offset points", xytext=(4, -10), fontsize=8)
-    fig.suptitle("Windowed silhouette likelihood, float32, 2 CPU cores: cost per frame")
+    fig.suptitle("Silhouette likelihood, float32, 2 CPU cores: cost per frame")
     fig.tight_layout()
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -109,7 +123,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--particles", type=int, nargs="+", default=[100, 250, 500, 1000, 2000])
     parser.add_argument("--views", type=int, nargs="+", default=[1, 2, 3, 4])
-    parser.add_argument("--images", nargs="+", default=["80x60", "160x120", "320x240"])
+    parser.add_argument("--images", nargs="+", default=["80x60", "160x120", "320x240", "640x480"])
+    parser.add_argument("--samples", type=int, default=2048, help="sample pixels per view for the sampled pixel sweep")
     parser.add_argument("--memory-particles", type=int, default=2000)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=3)
@@ -138,6 +153,7 @@ def main():
     for image in args.images:
         width, height = (int(v) for v in image.split("x"))
         record("pixels", measure(500, 4, width, height, args.frames, args.repeats, key))
+        record("pixels sampled", measure(500, 4, width, height, args.frames, args.repeats, key, samples=args.samples))
     memory = measure(args.memory_particles, 4, 160, 120, args.frames, args.repeats, key)
     memory["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # kB on Linux
     record("memory", memory)

@@ -159,8 +159,8 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        calibrate_shape=args.calibrate_shape, resolution=args.resolution, refine_steps=args.refine_steps,
-        velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
+        calibrate_shape=args.calibrate_shape, resolution=args.resolution, pixel_samples=args.pixel_samples,
+        refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
     )
     from .io import check_folder
 
@@ -206,7 +206,7 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        refine_steps=args.refine_steps, velocity=args.velocity,
+        refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples,
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
@@ -365,6 +365,10 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
                             help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                                  "(e.g. 80x60 for 320x240 data)")
+    experiment.add_argument("--pixel-samples", type=int, metavar="N",
+                            help="score the silhouettes on N stratified sample pixels per view and frame (outline band, "
+                                 "interior, near and far background) instead of every pixel: a cost independent of the image "
+                                 "size (e.g. 2048 for 320x240 or 640x480 data)")
     experiment.add_argument("--refine-steps", type=int, default=0,
                             help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
@@ -391,6 +395,9 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
     track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
+    track.add_argument("--pixel-samples", type=int, metavar="N",
+                       help="score the silhouettes on N stratified sample pixels per view and frame instead of every pixel "
+                            "(a cost independent of the image size; e.g. 2048 for 320x240 or 640x480 data)")
     track.add_argument("--refine-steps", type=int, default=0,
                        help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")

@@ -40,12 +40,35 @@ def shared_data():
     return path
 
 
+def _memory_maps_in_use() -> int | None:
+    """How many memory maps this process holds (Linux), or None where that cannot be read."""
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:
+        return None
+
+
+def _memory_map_limit() -> int:
+    try:
+        with open("/proc/sys/vm/max_map_count") as limit:
+            return int(limit.read())
+    except (OSError, ValueError):
+        return 65530
+
+
+MEMORY_MAP_LIMIT = _memory_map_limit()
+
+
 @pytest.fixture(autouse=True)
 def _release_compiled_programs(request):
-    """Drop the compiled programs after every slow test. A process that keeps every program of
-    the slow suite runs out of memory maps (vm.max_map_count is 65530 here) inside LLVM, which
-    aborts the whole run; the benchmarks clear their caches for the same reason. The default
-    suite keeps its programs: its modules share many of them, and clearing cost it 2.5 minutes."""
+    """Drop the compiled programs after every slow test, and after any test that leaves the
+    process holding over half of its memory-map limit. A process that keeps every compiled
+    program runs out of memory maps (vm.max_map_count is 65530 here) inside LLVM, which aborts
+    the whole run ("LLVM compilation error: Cannot allocate memory"); the benchmarks clear their
+    caches for the same reason. Otherwise the programs are kept: test modules share many of
+    them, and clearing after every test cost the default suite 2.5 minutes."""
     yield
-    if request.node.get_closest_marker("slow") is not None:
+    maps = _memory_maps_in_use()
+    if request.node.get_closest_marker("slow") is not None or (maps is not None and maps > MEMORY_MAP_LIMIT // 2):
         jax.clear_caches()

@@ -144,6 +144,44 @@ def test_apf_anneals_to_the_survival_target_and_tracks(getkey):
     assert np.abs(np.asarray(info.estimate) - np.asarray(ys)).mean() < 0.1
 
 
+def test_apf_final_layer_is_a_layer_after_the_annealing_and_traces_the_likelihood_once(getkey):
+    """The final full-pose layer (001 Alg. 3), run inside the annealing scan, equals the APF
+    without it followed by one ``smc_layer`` of the final dynamics on the annealed particles'
+    poses: the same carried particles and weights, the estimate the final layer's weighted
+    mean; and the likelihood is traced once per step (one copy for XLA to compile)."""
+    from jaxtrack.dynamics import PoseRandomWalk
+    from jaxtrack.filters import APF, FilterState, WeightedMean, smc_layer, systematic
+    from jaxtrack.likelihood import FunctionLikelihood
+
+    traces = []
+
+    def counted(poses, y):
+        traces.append(1)
+        return 4.0 * gaussian_likelihood(poses, y)
+
+    plain = make_apf(counted, Q, 64, num_layers=3, dtype=jnp.float64)
+    final = PoseRandomWalk(jnp.array([0.05, 0.04]))
+    with_final = APF(plain.dynamics, plain.likelihood, 64, 3, final_layer=final)
+    _, ys = linear_gaussian_data(getkey(), frames=2)
+    state = with_final.init(getkey(), jnp.zeros(2))
+    state = FilterState(state.particles + 0.3 * jax.random.normal(getkey(), state.particles.shape), state.log_weights)
+    key = getkey()
+    step = eqx.filter_jit(lambda f, k, s, y: f.step(k, s, y))
+    new_state, info = step(with_final, key, state, ys[1])
+    assert len(traces) == 1
+    anneal_key, final_key = jax.random.split(key)
+    reference, reference_info = step(plain, anneal_key, state, ys[1])
+    moved, weights, last = smc_layer(tuple(jax.random.split(final_key)), plain.dynamics.to_pose(reference.particles),
+                                     reference.log_weights, move=final.propose,
+                                     log_likelihood=lambda x: FunctionLikelihood(counted)(final.to_pose(x), ys[1]),
+                                     resample=systematic, temper=lambda log_lik: choose_beta(log_lik, 0.5))
+    np.testing.assert_allclose(new_state.particles, reference.particles, rtol=1e-12)
+    np.testing.assert_allclose(new_state.log_weights, reference.log_weights, rtol=1e-12)
+    np.testing.assert_allclose(info.estimate, WeightedMean()(weights, moved, final), rtol=1e-12)
+    np.testing.assert_allclose(info.betas, reference_info.betas, rtol=1e-12)
+    assert info.betas.shape == (3,) and bool(info.degenerate) == bool(reference_info.degenerate | last.degenerate)
+
+
 def test_all_minus_infinity_weights_do_not_leak_nans(getkey):
     _, ys = linear_gaussian_data(getkey(), frames=5)
     impossible = lambda poses, y: jnp.full(poses.shape[0], -jnp.inf)  # noqa: E731

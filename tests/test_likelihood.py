@@ -53,7 +53,8 @@ def test_cost_bounds_and_zero_at_perfect_match():
 
 @pytest.mark.parametrize("case", ["fits", "some_overflow", "all_dense"])
 def test_windowed_matches_dense(scene, getkey, case):
-    """All three paths of the windowed evaluation equal the dense reference."""
+    """The windowed evaluation equals the dense reference when every particle-view fits, when
+    one dense pass patches the overflowing ones, and when the loop takes several passes."""
     motion, rig, _seq, observed = scene
     body, sk = motion.body, motion.body.skeleton
     poses = jnp.asarray(motion.pose[2]) + 0.02 * jax.random.normal(getkey(), (64, 32))

@@ -30,6 +30,9 @@ class ExperimentConfig:
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
         resolution: (width, height) to track at: the test silhouettes are block-averaged down
             to it and the cameras rescaled (None: as recorded).
+        pixel_samples: score 000 eq. 12 on this many stratified sample pixels per view and
+            frame (``jaxtrack.likelihood.SampledSilhouetteLikelihood``) instead of every pixel
+            of the window: a cost independent of the image size (None: every pixel).
         refine_steps: gradient-refined (MALA) moves per particle per frame after the weighting
             (``jaxtrack.filters.LangevinRefinement``), paid for out of ``budget`` at
             ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
@@ -56,6 +59,7 @@ class ExperimentConfig:
     seed: int = 0
     calibrate_shape: bool = False
     resolution: tuple[int, int] | None = None
+    pixel_samples: int | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
     velocity: bool | None = None
@@ -77,6 +81,10 @@ class ExperimentConfig:
             raise ConfigurationError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
             raise ConfigurationError(f"resolution must be (width, height) in pixels, got {self.resolution}")
+        if self.pixel_samples is not None and (isinstance(self.pixel_samples, bool) or not isinstance(self.pixel_samples, int)
+                                               or self.pixel_samples < 4):
+            raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum) or None, "
+                                     f"got {self.pixel_samples!r}")
         if self.manifold is not None and self.manifold not in MANIFOLD_KINDS:
             raise ConfigurationError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
         budget = self.tracking_budget

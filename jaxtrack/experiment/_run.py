@@ -135,7 +135,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     # any fitting, so a bad last file fails in seconds, not after the fits and the first tracks.
     window = shared_window(test, config.frames, config.resolution)
     scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
-                           calibrate=config.calibrate_shape, resolution=config.resolution) for seq, name in zip(test, test_names)]
+                           calibrate=config.calibrate_shape, resolution=config.resolution, pixel_samples=config.pixel_samples)
+              for seq, name in zip(test, test_names)]
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 

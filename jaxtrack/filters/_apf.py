@@ -21,7 +21,7 @@ from ._estimators import AbstractEstimator, WeightedMean
 from ._refine import LangevinRefinement, resample_and_refine
 from ._resampling import get_resampler
 from ._sir import REFINE_STREAM, check_components, check_refinement
-from ._smc import layer_keys, smc_layer
+from ._smc import check_layer_shapes, layer_keys, weigh_layer
 from ._weights import effective_sample_size
 
 
@@ -84,51 +84,81 @@ class APF(AbstractFilter):
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         anneal_key, final_key = jax.random.split(key) if self.final_layer is not None else (key, None)
         resample = get_resampler(self.resampler)
-        dynamics = self.dynamics
+        dynamics, final = self.dynamics, self.final_layer
+        m_last = self.num_layers  # the final layer's index, after layers 0..M-1
 
-        def log_likelihood(states):
-            return self.likelihood(dynamics.to_pose(states), observation)
-
-        def anneal(carry, m):
-            particles, log_weights, previous = carry
-            factor = self.variance_decay ** (0.5 * m.astype(particles.dtype))
-
-            def move(k, x):
-                # Layer 0 is the transition, later layers perturb; one layer body in one scan, so
-                # the likelihood is compiled once.
-                return jax.lax.cond(
-                    m == 0, lambda: dynamics.propose(k, x), lambda: (dynamics.perturb(k, x, factor), jnp.zeros(x.shape[0], x.dtype))
-                )
-
-            particles, log_weights, info = smc_layer(
-                layer_keys(anneal_key, m), particles, log_weights, move=move, log_likelihood=log_likelihood,
-                resample=resample, temper=self._temper(m),
+        def anneal_move(k, x, m):
+            # Layer 0 is the transition, later layers perturb (one layer body, chosen by lax.cond).
+            factor = self.variance_decay ** (0.5 * m.astype(x.dtype))
+            return jax.lax.cond(
+                m == 0, lambda: dynamics.propose(k, x), lambda: (dynamics.perturb(k, x, factor), jnp.zeros(x.shape[0], x.dtype))
             )
-            # Each particle's state in the previous frame, followed through the layers' resampling.
-            return (particles, log_weights, previous[info.ancestors]), info
 
+        def layer(carry, xs):
+            """One SMC layer (as ``smc_layer``): an annealing layer (m < M) or the final full-pose
+            layer (m = M, 001 Alg. 3), which moves the poses of the annealed particles and weights
+            them for the estimate while the annealed particles carry on unchanged. Both score
+            their poses at this one call of the likelihood, so XLA compiles it once."""
+            particles, log_weights, previous = carry
+            m, (resample_key, move_key) = xs
+            is_final = m == m_last
+            ancestors = resample(resample_key, log_weights)
+            chosen = particles[ancestors]
+            if final is None:
+                moved, correction = anneal_move(move_key, chosen, m)
+                final_states, poses = None, dynamics.to_pose(moved)
+            else:
+                def final_move():
+                    pose_states, correction = final.propose(move_key, dynamics.to_pose(chosen))
+                    return chosen, pose_states, final.to_pose(pose_states), correction
+
+                def annealing_move():
+                    states, correction = anneal_move(move_key, chosen, m)
+                    poses = dynamics.to_pose(states)
+                    return states, poses, poses, correction
+
+                moved, final_states, poses, correction = jax.lax.cond(is_final, final_move, annealing_move)
+            log_lik = self.likelihood(poses, observation)
+            check_layer_shapes(particles, moved, correction, log_lik)
+            if final is None:
+                temper = self._temper(m)
+            else:
+                def temper(log_lik):
+                    annealing_beta = self._temper(jnp.minimum(m, m_last - 1))(log_lik)
+                    return jnp.where(is_final, choose_beta(log_lik, self.survival_target), annealing_beta)
+            new_log_weights, info = weigh_layer(log_lik, correction, ancestors, temper)
+            keep = lambda old, new: jnp.where(is_final, old, new)  # noqa: E731
+            carry = (keep(particles, moved), keep(log_weights, new_log_weights), keep(previous, previous[ancestors]))
+            return carry, (info, final_states, new_log_weights)
+
+        annealing = jnp.arange(self.num_layers)
+        anneal_keys = jax.vmap(lambda m: jnp.stack(layer_keys(anneal_key, m)))(annealing)
+        final_keys = None if final is None else jnp.stack(jax.random.split(final_key))[None]
+        with_final = final is not None and self.refine is None
+        layer_index = jnp.arange(self.num_layers + 1) if with_final else annealing
+        keys = jnp.concatenate([anneal_keys, final_keys]) if with_final else anneal_keys
         carry = (state.particles, state.log_weights, state.particles)
-        (particles, log_weights, previous), layers = jax.lax.scan(anneal, carry, jnp.arange(self.num_layers))
+        carry, (layers, final_states, final_weights) = jax.lax.scan(layer, carry, (layer_index, keys))
+        particles, log_weights, previous = carry
         refine_info = None
         if self.refine is not None:
             particles, log_weights, refine_info = resample_and_refine(
                 self.refine, jax.random.fold_in(key, REFINE_STREAM), particles, previous, log_weights, dynamics=dynamics,
-                log_likelihood=log_likelihood, resample=resample,
+                log_likelihood=lambda states: self.likelihood(dynamics.to_pose(states), observation), resample=resample,
             )
-        degenerate = layers.degenerate
-        if self.final_layer is None:
+            if final is not None:  # after the refinement: a layer of its own (the likelihood compiled once more)
+                _, (last, last_states, last_weights) = layer((particles, log_weights, previous), (jnp.asarray(m_last), final_keys[0]))
+                layers = jax.tree.map(lambda a, b: jnp.concatenate([a, b[None]]), layers, last)
+                final_states = jnp.concatenate([final_states, last_states[None]])
+                final_weights = jnp.concatenate([final_weights, last_weights[None]])
+        if final is None:
             estimate = self.estimator(log_weights, particles, dynamics)
         else:
-            final = self.final_layer
-            refined, final_weights, last = smc_layer(
-                tuple(jax.random.split(final_key)), dynamics.to_pose(particles), log_weights, move=final.propose,
-                log_likelihood=lambda x: self.likelihood(final.to_pose(x), observation), resample=resample,
-                temper=lambda log_lik: choose_beta(log_lik, self.survival_target),
-            )
-            estimate = WeightedMean()(final_weights, refined, final)
-            degenerate = jnp.concatenate([degenerate, last.degenerate[None]])
+            estimate = WeightedMean()(final_weights[-1], final_states[-1], final)
+        annealed = jax.tree.map(lambda x: x[: self.num_layers], layers)
         info = StepInfo(
-            estimate=estimate, ess=effective_sample_size(log_weights), log_evidence=layers.log_evidence[0], betas=layers.beta,
-            survival=layers.ess / self.num_particles, degenerate=jnp.any(degenerate), refine=refine_info,
+            estimate=estimate, ess=effective_sample_size(log_weights), log_evidence=annealed.log_evidence[0], betas=annealed.beta,
+            survival=annealed.ess / self.num_particles, degenerate=jnp.any(layers.degenerate), refine=refine_info,
         )
         return FilterState(particles, log_weights), info
+

@@ -68,6 +68,16 @@ def smc_layer(
     moved, log_correction = move(move_key, particles[ancestors])
     log_lik = log_likelihood(moved)
     check_layer_shapes(particles, moved, log_correction, log_lik)
+    new_log_weights, info = weigh_layer(log_lik, log_correction, ancestors, temper)
+    return moved, new_log_weights, info
+
+
+def weigh_layer(
+    log_lik: Float[Array, " n"], log_correction: Float[Array, " n"], ancestors: Int[Array, " n"], temper: Callable | None = None
+) -> tuple[Float[Array, " n"], LayerInfo]:
+    """The weighting half of ``smc_layer``: normalised log-weights
+    ``beta l_i + correction_i - logsumexp(...)`` of moved particles and the layer's ``LayerInfo``
+    (for a layer that resamples and moves in its own way, e.g. APF's final layer)."""
     if temper is None:
         beta = jax.numpy.ones((), log_lik.dtype)
         tempered = log_lik
@@ -77,7 +87,7 @@ def smc_layer(
     new_log_weights, degenerate = normalise_log_weights(tempered + log_correction)
     info = LayerInfo(beta=beta, ess=effective_sample_size(new_log_weights), degenerate=degenerate, log_evidence=log_mean_exp(log_lik),
                      ancestors=ancestors)
-    return moved, new_log_weights, info
+    return new_log_weights, info
 
 
 def check_layer_shapes(particles, moved, log_correction, log_lik) -> None:

@@ -7,6 +7,11 @@ from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
 from ._calibration import ShapeCalibration as ShapeCalibration
 from ._calibration import calibrate_shape as calibrate_shape
+from ._sampled import PixelSample as PixelSample
+from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
+from ._sampled import pixel_strata as pixel_strata
+from ._sampled import sample_frames as sample_frames
+from ._sampled import sample_pixels as sample_pixels
 from ._silhouette import SilhouetteLikelihood as SilhouetteLikelihood
 from ._silhouette import bidirectional_silhouette_cost as bidirectional_silhouette_cost
 from ._silhouette import check_silhouettes as check_silhouettes

@@ -9,3 +9,4 @@ from ._soft_raster import project_capsules as project_capsules
 from ._soft_raster import soft_from_capsules as soft_from_capsules
 from ._soft_raster import soft_silhouettes as soft_silhouettes
 from ._soft_raster import union_statistics as union_statistics
+from ._soft_raster import weighted_union_statistics as weighted_union_statistics

@@ -124,7 +124,6 @@ def _one_capsule_miss(start, end, radius, px, py, edge_width):
     return _capsule_miss([x[..., 0, :] for x in _capsule_terms(caps, edge_width)], px, py)
 
 
-@jax.custom_vjp
 def union_statistics(
     start: Float[Array, "*batch capsules 2"],
     end: Float[Array, "*batch capsules 2"],
@@ -137,27 +136,50 @@ def union_statistics(
     """Area ``A = sum_p S_p`` and overlap ``B = sum_p S_p O_p`` of the soft union silhouette
     ``S`` of the capsules at the given pixels, against the observed values ``O``.
 
+    Differentiable (reverse mode) in ``start``, ``end`` and ``radius``: see
+    ``weighted_union_statistics``, of which this is the case of unit pixel weights.
+    """
+    one = jnp.ones((1,), radius.dtype)
+    return weighted_union_statistics(start, end, radius, px, py, one, observed, edge_width)
+
+
+@jax.custom_vjp
+def weighted_union_statistics(
+    start: Float[Array, "*batch capsules 2"],
+    end: Float[Array, "*batch capsules 2"],
+    radius: Float[Array, "*batch capsules"],
+    px: Float[Array, "*#batch pixels"],
+    py: Float[Array, "*#batch pixels"],
+    area_weight: Float[Array, "*#batch #pixels"],
+    overlap_weight: Float[Array, "*#batch pixels"],
+    edge_width,
+) -> tuple[Float[Array, " *batch"], Float[Array, " *batch"]]:
+    """Weighted sums ``A = sum_p a_p S_p`` and ``B = sum_p b_p S_p`` of the soft union
+    silhouette ``S`` of the capsules at the given pixels (e.g. ``a_p`` a sampled pixel's
+    inverse inclusion probability and ``b_p = a_p O_p`` with ``O`` the observation).
+
     Differentiable (reverse mode) in ``start``, ``end`` and ``radius``, with a backward pass
     that recomputes the silhouette instead of storing it: per capsule, the pixel weights
     ``dL/dS_p`` times ``prod_{j != k} (1 - o_j)`` pulled back by autodiff through that
     capsule's occupancy alone, reduced over the pixels as it goes. Differentiating the unrolled
     product directly keeps every partial product of every pixel for the backward pass, about
     30 times the cost of the evaluation on CPU; this is a few times it. The pixel positions,
-    the observations and the edge width get zero cotangents (they are data here).
+    the weights and the edge width get zero cotangents (they are data here).
     """
     caps = ProjectedCapsules(start, end, radius, None)
     silhouette = capsule_union(caps, px, py, edge_width)
-    return jnp.sum(silhouette, axis=-1), jnp.sum(silhouette * observed, axis=-1)
+    return jnp.sum(silhouette * area_weight, axis=-1), jnp.sum(silhouette * overlap_weight, axis=-1)
 
 
-def _union_statistics_fwd(start, end, radius, px, py, observed, edge_width):
-    return union_statistics(start, end, radius, px, py, observed, edge_width), (start, end, radius, px, py, observed, edge_width)
+def _weighted_union_statistics_fwd(start, end, radius, px, py, area_weight, overlap_weight, edge_width):
+    residuals = (start, end, radius, px, py, area_weight, overlap_weight, edge_width)
+    return weighted_union_statistics(*residuals), residuals
 
 
-def _union_statistics_bwd(residuals, cotangents):
-    start, end, radius, px, py, observed, edge_width = residuals
+def _weighted_union_statistics_bwd(residuals, cotangents):
+    start, end, radius, px, py, area_weight, overlap_weight, edge_width = residuals
     area_bar, overlap_bar = cotangents
-    weight = area_bar[..., None] + overlap_bar[..., None] * observed  # dL/dS per pixel
+    weight = area_bar[..., None] * area_weight + overlap_bar[..., None] * overlap_weight  # dL/dS per pixel
     num = radius.shape[-1]
     misses = [_one_capsule_miss(start[..., k, :], end[..., k, :], radius[..., k], px, py, edge_width) for k in range(num)]
     # prod_{j != k} miss_j without dividing by zero: count the exact zeros (pixels deep inside a capsule).
@@ -176,11 +198,11 @@ def _union_statistics_bwd(residuals, cotangents):
     start_bar = jnp.stack([g[0] for g in grads], axis=-2)
     end_bar = jnp.stack([g[1] for g in grads], axis=-2)
     radius_bar = jnp.stack([g[2] for g in grads], axis=-1)
-    return (start_bar, end_bar, radius_bar, jnp.zeros_like(px), jnp.zeros_like(py), jnp.zeros_like(observed),
-            jnp.zeros_like(edge_width))
+    return (start_bar, end_bar, radius_bar, jnp.zeros_like(px), jnp.zeros_like(py), jnp.zeros_like(area_weight),
+            jnp.zeros_like(overlap_weight), jnp.zeros_like(edge_width))
 
 
-union_statistics.defvjp(_union_statistics_fwd, _union_statistics_bwd)
+weighted_union_statistics.defvjp(_weighted_union_statistics_fwd, _weighted_union_statistics_bwd)
 
 
 def capsule_support(caps: ProjectedCapsules, edge_width) -> Float[Array, "*batch views capsules"]:

@@ -22,12 +22,13 @@ from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
-from ..likelihood import calibrate_shape, check_silhouettes, make_silhouette_likelihood
+from ..likelihood import SampledSilhouetteLikelihood, calibrate_shape, check_silhouettes, make_silhouette_likelihood, sample_frames
 from ..manifold import fit_model, make_bc_gplvm, make_gpdm
 from ._registry import MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
+PIXEL_SAMPLE_TAG = 2**31 - 2  # fold_in tag of a test scene's pixel-sample key
 
 
 def sequence_poses(sequence: Sequence, name: str, *, key: PRNGKeyArray) -> np.ndarray:
@@ -154,7 +155,7 @@ class TestScene:
     and the float64 ground truth."""
 
     likelihood: object
-    observations: jax.Array  # (T, C, H, W) float32
+    observations: object  # (T, C, H, W) float32 silhouettes, or a PixelSample with a leading T axis
     initial_pose: jax.Array  # (D,) float32
     truth_poses: np.ndarray  # (T, D)
     truth_joints: np.ndarray  # (T, J, 3)
@@ -163,17 +164,21 @@ class TestScene:
 
     @property
     def num_frames(self) -> int:
-        return int(self.observations.shape[0])
+        return int(jax.tree.leaves(self.observations)[0].shape[0])
 
 
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
-                 window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None) -> TestScene:
+                 window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None,
+                 pixel_samples: int | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames, all when None). With ``calibrate``, the body's capsule radii are fitted
     to the first frame's silhouettes at the initial pose (``likelihood.calibrate_shape``)
     before tracking; the sequence's own ``capsule_radii`` (or the defaults) are the start. With
     ``resolution`` = (width, height), the silhouettes are block-averaged down to it and the
-    cameras rescaled (``Sequence.resized``); it must divide the recorded size."""
+    cameras rescaled (``Sequence.resized``); it must divide the recorded size. With
+    ``pixel_samples`` = n, the likelihood is the ``SampledSilhouetteLikelihood`` on n stratified
+    pixels per view and frame (``sample_frames`` with ``fold_in(key, PIXEL_SAMPLE_TAG)``, drawn
+    once for the scene, after any calibration) and the observations are the ``PixelSample``."""
     check_test_sequence(sequence, name)
     total = sequence.silhouettes.shape[1]
     frames = total if frames is None else min(frames, total)
@@ -192,8 +197,12 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, truth_poses[:1], observations[:1])
         body = likelihood.body
+    observations = jnp.asarray(observations)
+    if pixel_samples is not None:
+        likelihood = SampledSilhouetteLikelihood.from_dense(likelihood)
+        observations = sample_frames(jax.random.fold_in(key, PIXEL_SAMPLE_TAG), observations, samples=pixel_samples)
     return TestScene(
-        likelihood=likelihood, observations=jnp.asarray(observations), initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE),
+        likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE),
         truth_poses=truth_poses, truth_joints=truth, body=body, shape_calibration=report,
     )
 
@@ -251,7 +260,8 @@ def track_sequences(tracker, keys: Key[Array, " sequences"], scenes):
         raise ValueError(f"track_sequences: {len(keys)} keys for {len(scenes)} scenes (one key per scene, at least one)")
     first = scenes[0]
     for index, scene in enumerate(scenes[1:], start=1):
-        for what, a, b in (("observations (frames, views, height, width)", scene.observations.shape, first.observations.shape),
+        shapes = lambda tree: [x.shape for x in jax.tree.leaves(tree)]  # noqa: E731
+        for what, a, b in (("observations (frames, views, height, width)", shapes(scene.observations), shapes(first.observations)),
                            ("initial pose", scene.initial_pose.shape, first.initial_pose.shape)):
             if a != b:
                 raise ValueError(f"track_sequences: scene {index} has {what} {a}, scene 0 {b}: batched sequences must match")
@@ -259,7 +269,7 @@ def track_sequences(tracker, keys: Key[Array, " sequences"], scenes):
             raise ValueError(f"track_sequences: scene {index} has another body than scene 0; the tracker's likelihood scores all "
                              "the sequences with one body, so track it separately")
     initial = jnp.stack([scene.initial_pose for scene in scenes])
-    observations = jnp.stack([scene.observations for scene in scenes])
+    observations = jax.tree.map(lambda *xs: jnp.stack(xs), *[scene.observations for scene in scenes])
     _, info = jax.vmap(run_filter, in_axes=(None, 0, 0, 0))(tracker, keys, initial, observations)
     poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
     joints = jax.vmap(lambda p: forward_kinematics(first.body.skeleton, p))(jnp.asarray(poses, TRACKING_DTYPE))
@@ -290,10 +300,11 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
                    calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
-                   on_chunk=None):
+                   on_chunk=None, pixel_samples: int | None = None):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
     (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``); ``chunk_frames``
-    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk).
+    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``pixel_samples``
+    as for ``prepare_test``.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
@@ -305,7 +316,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     check_model_layout(model, header, sequence, name)
     check_frame_rates([sequence, validation], [name, "the validation sequence"])
     key = jax.random.key(seed)
-    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate)
+    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples)
     starts = header.get("sequence_starts")
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
