@@ -1,10 +1,23 @@
 """Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
 (kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
-manifold precomputed for the trackers (../shared/METHODS.md section 3)."""
+manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
+family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002) are here as
+functions; their model class, RBF networks and tracker are still to come (issue #16)."""
 
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
 from ._base import register_manifold as register_manifold
+from ._dtw import dtw_distance as dtw_distance
+from ._dtw import subsequence_dtw as subsequence_dtw
+from ._eigenmaps import connected_components as connected_components
+from ._eigenmaps import gait_cycles as gait_cycles
+from ._eigenmaps import gait_period as gait_period
+from ._eigenmaps import gle_graph as gle_graph
+from ._eigenmaps import knn_graph as knn_graph
+from ._eigenmaps import laplacian_embedding as laplacian_embedding
+from ._eigenmaps import stylistic_graph as stylistic_graph
+from ._eigenmaps import stylistic_neighbours as stylistic_neighbours
+from ._eigenmaps import temporal_graph as temporal_graph
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
 from ._kernels import LinearRBFKernel as LinearRBFKernel
