@@ -1,8 +1,8 @@
 """Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
 (kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
 manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
-family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002) are here as
-functions; their model class, RBF networks and tracker are still to come (issue #16)."""
+family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002) and its RBF
+networks are here as functions; their model class and tracker are still to come (issue #16)."""
 
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
@@ -41,6 +41,9 @@ from ._plot import plot_latent as plot_latent
 from ._predictor import GPPredictor as GPPredictor
 from ._prior import ManifoldPrior as ManifoldPrior
 from ._prior import make_manifold_prior as make_manifold_prior
+from ._rbf import RBFNetwork as RBFNetwork
+from ._rbf import fit_gaussian_mixture as fit_gaussian_mixture
+from ._rbf import fit_rbf_network as fit_rbf_network
 from ._serialise import ModelFileError as ModelFileError
 from ._serialise import load_model as load_model
 from ._serialise import read_header as read_header
