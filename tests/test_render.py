@@ -90,10 +90,13 @@ def test_render_jit_and_vmap(setup, getkey):
 
 
 @pytest.mark.slow
-def test_union_statistics_backward_pass_equals_autodiff_of_the_product(getkey):
-    """The recomputing backward pass of ``union_statistics`` against reverse-mode autodiff of
-    the unrolled union, including pixels deep inside a capsule (an exact zero of ``1 - o``)."""
-    from jaxtrack.render import ProjectedCapsules, capsule_union, union_statistics
+@pytest.mark.parametrize("weighted", [False, True])
+def test_union_statistics_backward_pass_equals_autodiff_of_the_product(getkey, weighted):
+    """The recomputing backward pass of ``union_statistics`` (and of ``weighted_union_statistics``,
+    with per-pixel area and overlap weights as the sampled likelihood uses) against reverse-mode
+    autodiff of the unrolled union, including pixels deep inside a capsule (an exact zero of
+    ``1 - o``)."""
+    from jaxtrack.render import ProjectedCapsules, capsule_union, union_statistics, weighted_union_statistics
 
     n, v, k, p = 3, 2, 5, 200
     start = 20 * jax.random.uniform(getkey(), (n, v, k, 2), jnp.float64)
@@ -103,6 +106,7 @@ def test_union_statistics_backward_pass_equals_autodiff_of_the_product(getkey):
     px = px.at[0].set(start[0, 0, 0, 0])  # on a capsule's axis: its occupancy is exactly 1
     py = py.at[0].set(start[0, 0, 0, 1])
     observed = (jax.random.uniform(getkey(), (v, p)) > 0.5).astype(jnp.float64)
+    area_weight = 0.5 + jax.random.uniform(getkey(), (v, p), jnp.float64) if weighted else jnp.ones((1,), jnp.float64)
     edge = jnp.asarray(1.0, jnp.float64)
     a_bar, b_bar = jax.random.normal(getkey(), (2, n, v), jnp.float64)
 
@@ -111,11 +115,13 @@ def test_union_statistics_backward_pass_equals_autodiff_of_the_product(getkey):
 
     def reference(s, e, r):
         sil = capsule_union(ProjectedCapsules(s, e, r, None), px, py, edge)
-        return jnp.sum(sil, -1), jnp.sum(sil * observed, -1)
+        return jnp.sum(sil * area_weight, -1), jnp.sum(sil * area_weight * observed, -1)
 
-    custom = jax.grad(loss(lambda s, e, r: union_statistics(s, e, r, px, py, observed, edge)), (0, 1, 2))(start, end, radius)
-    plain = jax.grad(loss(reference), (0, 1, 2))(start, end, radius)
-    for a, b in zip(custom, plain):
+    def custom(s, e, r):
+        if weighted:
+            return weighted_union_statistics(s, e, r, px, py, area_weight, area_weight * observed, edge)
+        return union_statistics(s, e, r, px, py, observed, edge)
+
+    for a, b in zip(jax.grad(loss(custom), (0, 1, 2))(start, end, radius), jax.grad(loss(reference), (0, 1, 2))(start, end, radius)):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(np.asarray(union_statistics(start, end, radius, px, py, observed, edge)),
-                               np.asarray(reference(start, end, radius)), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(custom(start, end, radius)), np.asarray(reference(start, end, radius)), rtol=1e-12)

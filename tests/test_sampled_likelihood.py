@@ -98,33 +98,6 @@ def test_the_sampled_sums_are_unbiased_for_a_pose(scene, getkey):
         assert np.all(np.abs(mean - np.asarray(exact)) < 4 * sd + 1e-9), (mean, exact, sd)
 
 
-@pytest.mark.slow
-def test_weighted_union_statistics_backward_pass_equals_autodiff(getkey):
-    from jaxtrack.render import ProjectedCapsules, capsule_union, weighted_union_statistics
-
-    n, v, k, p = 2, 2, 4, 150
-    start = 20 * jax.random.uniform(getkey(), (n, v, k, 2), jnp.float64)
-    end = start + 6 * jax.random.normal(getkey(), (n, v, k, 2), jnp.float64)
-    radius = 1.0 + 3 * jax.random.uniform(getkey(), (n, v, k), jnp.float64)
-    px, py = (20 * jax.random.uniform(getkey(), (v, p), jnp.float64) for _ in range(2))
-    a_w = 0.5 + jax.random.uniform(getkey(), (v, p), jnp.float64)
-    b_w = a_w * (jax.random.uniform(getkey(), (v, p)) > 0.5)
-    edge = jnp.asarray(1.0, jnp.float64)
-    a_bar, b_bar = jax.random.normal(getkey(), (2, n, v), jnp.float64)
-
-    def loss(stats):
-        return lambda s, e, r: jnp.sum(a_bar * stats(s, e, r)[0] + b_bar * stats(s, e, r)[1])
-
-    def reference(s, e, r):
-        sil = capsule_union(ProjectedCapsules(s, e, r, None), px, py, edge)
-        return jnp.sum(sil * a_w, -1), jnp.sum(sil * b_w, -1)
-
-    custom = jax.grad(loss(lambda s, e, r: weighted_union_statistics(s, e, r, px, py, a_w, b_w, edge)), (0, 1, 2))(start, end, radius)
-    plain = jax.grad(loss(reference), (0, 1, 2))(start, end, radius)
-    for a, b in zip(custom, plain):
-        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-9, atol=1e-9)
-
-
 def test_sampled_likelihood_ranks_poses_like_every_pixel(scene, getkey):
     """Around the truth the sampled cost follows the dense one (64x48, 4 views, 1024 samples
     per view): a shift shared by every pose (one draw's luck, which the weights ignore) and a

@@ -79,15 +79,19 @@ def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id,
     def loss(p):
         return _loss(p, static)
 
-    value_and_grad = optax.value_and_grad_from_state(loss)
-    initial = loss(params)
+    # The loss and gradient at the start go into the optimiser's state, where its line search
+    # leaves them after every step: the body reads them from there, so the objective's code
+    # appears twice in the program (here and in the line search), not four times (a forward
+    # pass for the start, ``value_and_grad_from_state``'s recompute branch, the line search).
+    initial, initial_grad = jax.value_and_grad(loss)(params)
     dtype = jnp.result_type(initial)
+    initial_state = optax.tree_utils.tree_set(_OPTIMISER.init(params), value=initial, grad=initial_grad)
 
     def cond(c: _Carry):
         return (c.step < max_steps) & ~c.done
 
     def body(c: _Carry):
-        value, grad = value_and_grad(c.params, state=c.state)
+        value, grad = optax.tree_utils.tree_get(c.state, "value"), optax.tree_utils.tree_get(c.state, "grad")
         updates, state = _OPTIMISER.update(grad, c.state, c.params, value=value, grad=grad, value_fn=loss)
         params = optax.apply_updates(c.params, updates)
         new_value = optax.tree_utils.tree_get(state, "value")
@@ -111,7 +115,7 @@ def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id,
         )
 
     start = _Carry(
-        params=params, state=_OPTIMISER.init(params), step=jnp.asarray(0), evaluations=jnp.asarray(2),  # ``initial``, and step 0's own
+        params=params, state=initial_state, step=jnp.asarray(0), evaluations=jnp.asarray(1),  # ``initial`` (with its gradient)
         value=initial, checkpoint=initial, done=~jnp.isfinite(initial), trace=jnp.full((capacity,), jnp.nan, dtype),
     )
     end = jax.lax.while_loop(cond, body, start)
