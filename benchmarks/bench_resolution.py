@@ -32,8 +32,8 @@ def main():
     parser.add_argument("--height", type=int, default=240)
     parser.add_argument("--coarse", default="80x60", help="the level tracked at, WxH (must divide the image size)")
     parser.add_argument("--samples", type=int, nargs="+", default=[2048], help="sample pixels per view and frame")
-    parser.add_argument("--likelihoods", nargs="+", choices=["every", "sampled", "coarse"], default=["every", "sampled", "coarse"],
-                        help="which likelihoods to track with")
+    parser.add_argument("--likelihoods", nargs="*", choices=["every", "sampled", "coarse"], default=["every", "sampled", "coarse"],
+                        help="which likelihoods to track with (none: only the bias)")
     parser.add_argument("--draws", type=int, default=5, help="pixel samples drawn for the bias measurement")
     parser.add_argument("--views", type=int, default=3)
     parser.add_argument("--methods", nargs="+", default=["mrpf"])
@@ -42,6 +42,7 @@ def main():
     parser.add_argument("--particles", type=int, default=200, help="poses for the bias measurement")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
+    parser.add_argument("--plot", metavar="PNG", help="draw one view's strata and sample, and sampled against dense costs, here")
     args = parser.parse_args()
     os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
     import json
@@ -94,6 +95,9 @@ def main():
                      "correlation": float(np.mean([np.corrcoef(c, cost_fine)[0, 1] for c in costs]))})
         print(json.dumps(rows[-1]), flush=True)
     write_json(rows, args.json)
+    if args.plot:
+        plot(fine, draws[0], cost_fine, cheap, args.plot)
+        print(f"wrote {args.plot}", flush=True)
 
     settings = [("every", "every pixel", {}), *(("sampled", f"sampled {n}", {"pixel_samples": n}) for n in args.samples),
                 ("coarse", f"coarse {args.coarse}", {"resolution": coarse})]
@@ -111,6 +115,45 @@ def main():
                              "frames_per_second": r["frames_per_second"], "compile_s": r.get("compile_s")})
                 print(json.dumps(rows[-1]), flush=True)
                 write_json(rows, args.json)
+
+
+def plot(scene, sample, cost_fine, cheap, path):
+    """Left: view 0's observed silhouette, its four strata and the frame's sample points; right:
+    each cheap cost against the dense one over the scattered poses (first draw)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from jaxtrack.likelihood import default_band, default_near, pixel_strata
+
+    observed = np.asarray(scene.observations[0])
+    height = observed.shape[-2]
+    strata = np.asarray(pixel_strata(observed, default_band(height), default_near(height)))[:, 0]
+    colours = np.array([[0.85, 0.3, 0.2], [0.95, 0.85, 0.4], [0.55, 0.75, 0.9], [0.93, 0.93, 0.93]])
+    image = np.tensordot(np.moveaxis(strata, 0, -1), colours, axes=1)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [1.25, 1]})
+    left.imshow(image, interpolation="nearest")
+    u, v = np.asarray(sample.u[0, 0]), np.asarray(sample.v[0, 0])
+    left.scatter(u, v, s=1.5, c="k", linewidths=0)
+    names = ("outline band (55 %)", "interior (20 %)", "near background (20 %)", "far background (5 %)")
+    for colour, name in zip(colours, names):
+        left.scatter([], [], color=colour, marker="s", s=40, label=name)
+    left.legend(loc="lower right", fontsize=7, framealpha=0.9)
+    left.set_title(f"view 0, {observed.shape[-1]}x{height}: strata and the {u.size} sampled pixels of one frame", fontsize=9)
+    left.set_axis_off()
+    for label, costs in cheap.items():
+        right.scatter(cost_fine, costs[0], s=8, alpha=0.7, label=label)
+    lo, hi = float(np.min(cost_fine)), float(np.max(cost_fine))
+    right.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="equal")
+    right.set_xlabel("000 eq. 12 cost, every pixel")
+    right.set_ylabel("cheap estimate")
+    right.set_title("poses scattered around the truth (first draw)", fontsize=9)
+    right.legend(fontsize=8)
+    right.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,8 @@ from ._calibration import ShapeCalibration as ShapeCalibration
 from ._calibration import calibrate_shape as calibrate_shape
 from ._sampled import PixelSample as PixelSample
 from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
+from ._sampled import default_band as default_band
+from ._sampled import default_near as default_near
 from ._sampled import pixel_strata as pixel_strata
 from ._sampled import sample_frames as sample_frames
 from ._sampled import sample_pixels as sample_pixels
