@@ -269,7 +269,7 @@ def test_batched_sequences_equal_separate_tracks():
         track_sequences(tracker, keys, [first, scene("S1", 3, frames=5)[1]])
 
 
-def test_tracking_on_sampled_pixels():
+def test_tracking_on_sampled_pixels(tmp_path, capsys):
     """``prepare_test(pixel_samples=n)``: the sampled likelihood with one ``PixelSample`` per
     frame as the observations; runs batched in one call equal separate runs, and the estimates
     stay on the person (160x120, SIR, 4 frames)."""
@@ -296,3 +296,8 @@ def test_tracking_on_sampled_pixels():
     assert error < 60, error
     with pytest.raises(ConfigurationError, match="pixel_samples"):
         ExperimentConfig(pixel_samples=2)
+    from jaxtrack.cli import main
+
+    inputs = ["--train", "walk.npz", "--validation", "walk.npz", "--test", "walk.npz", "--out", str(tmp_path / "out")]
+    assert main(["experiment", *inputs, "--pixel-samples", "2"]) == 2
+    assert "pixel_samples must be a whole number >= 4" in capsys.readouterr().err
