@@ -156,3 +156,7 @@ def test_gait_cycles_split_a_cyclic_motion_at_its_period():
     assert sum(cycles) == 160 and all(abs(c - 37) <= 1 for c in cycles[:-1]) and cycles[-1] == 160 - sum(cycles[:-1])
     with pytest.raises(ConfigurationError, match="needs two cycles"):
         gait_period(Y[:10])
+    # A random walk has no period: no autocorrelation peak reaches half its lag-0 value.
+    wander = np.cumsum(np.random.default_rng(5).normal(size=(160, 3)), axis=0)
+    with pytest.raises(ConfigurationError, match="no clear period"):
+        gait_cycles(wander)
