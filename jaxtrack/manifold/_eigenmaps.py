@@ -185,10 +185,11 @@ def gle_graph(Y, lengths, t: int, alpha: float = 1.0) -> np.ndarray:
     return temporal_graph(lengths, t) + alpha * stylistic_graph(stylistic_neighbours(Y, lengths, t))
 
 
-def gait_period(poses, *, min_period: int = 8, max_period: int | None = None) -> int:
+def gait_period(poses, *, min_period: int = 8, max_period: int | None = None, min_correlation: float = 0.5) -> int:
     """The period (frames) of a cyclic motion: the lag of the highest autocorrelation peak of the
     mean-removed joint trajectories between ``min_period`` and ``max_period`` (default: half the
-    sequence)."""
+    sequence). Raises ``ConfigurationError`` when no peak reaches ``min_correlation`` of the
+    zero-lag value (no clear period: fewer than two cycles, or not a cyclic motion)."""
     Y = np.asarray(poses, np.float64)
     T = Y.shape[0]
     max_period = T // 2 if max_period is None else max_period
@@ -199,18 +200,22 @@ def gait_period(poses, *, min_period: int = 8, max_period: int | None = None) ->
     lags = np.arange(min_period, max_period + 1)
     # Normalised by the overlap, so long lags are not penalised for having fewer terms.
     correlation = np.array([np.sum(centred[:-lag] * centred[lag:]) / (T - lag) for lag in lags])
-    peaks = [i for i in range(len(lags)) if (i == 0 or correlation[i] >= correlation[i - 1])
-             and (i == len(lags) - 1 or correlation[i] >= correlation[i + 1])]
+    zero_lag = np.sum(centred * centred) / T
+    peaks = [i for i in range(1, len(lags) - 1) if correlation[i] >= correlation[i - 1] and correlation[i] >= correlation[i + 1]
+             and correlation[i] >= min_correlation * zero_lag]
+    if not peaks:
+        raise ConfigurationError(f"no clear period between {min_period} and {max_period} frames in a sequence of {T} frames "
+                                 f"(no autocorrelation peak reaches {min_correlation:g} of its value at lag 0)")
     return int(lags[max(peaks, key=lambda i: correlation[i])])
 
 
-def gait_cycles(poses, *, min_period: int = 8, max_period: int | None = None) -> list[int]:
+def gait_cycles(poses, *, min_period: int = 8, max_period: int | None = None, min_correlation: float = 0.5) -> list[int]:
     """Split one cyclic sequence into its repetitions (gait cycles) for GLE's stylistic
     neighbours: boundaries where the pose returns closest to the first frame's, searched within
     a quarter period of each multiple of ``gait_period``. Returns the cycles' lengths (they sum
     to the sequence's frames; a tail shorter than half a period joins the last cycle)."""
     Y = np.asarray(poses, np.float64)
-    period = gait_period(Y, min_period=min_period, max_period=max_period)
+    period = gait_period(Y, min_period=min_period, max_period=max_period, min_correlation=min_correlation)
     distance = np.linalg.norm(Y - Y[0], axis=1)
     bounds, last = [0], 0
     while last + period + period // 4 < Y.shape[0]:
