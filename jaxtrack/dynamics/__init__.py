@@ -9,6 +9,8 @@ from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_d
 from ._base import AbstractDynamics as AbstractDynamics
 from ._base import as_scale_vector as as_scale_vector
 from ._base import gaussian_step as gaussian_step
+from ._gle_graph import GLEGraphWalk as GLEGraphWalk
+from ._gle_graph import fit_gle_graph_walk as fit_gle_graph_walk
 from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics
 from ._gpdm_latent import fit_gpdm_latent_dynamics as fit_gpdm_latent_dynamics
 from ._gpdm_latent import fit_latent_dynamics as fit_latent_dynamics

@@ -2,7 +2,7 @@
 order fixes each tracker's key stream, ``tracker_index``). Adding a tracker: its recipe module
 in this package, and one line here."""
 
-from . import _apf, _gpapf, _latentpf, _mrpf, _sir, _velocity
+from . import _apf, _glegbpf, _gpapf, _latentpf, _mrpf, _sir, _velocity
 from ._registry import register_tracker
 
 BUILTIN_RECIPES = (
@@ -14,6 +14,7 @@ BUILTIN_RECIPES = (
     _mrpf.PRINTED,
     _velocity.SIR_RECIPE,
     _velocity.APF_RECIPE,
+    _glegbpf.RECIPE,
 )
 PAPER_TRACKERS = ("sir", "apf", "mrpf", "gpapf", "latentpf")  # what an experiment runs by default (000 Table 1 + 001 + 003)
 
