@@ -1,8 +1,8 @@
 """Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
 (kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
 manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
-family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002) and its RBF
-networks are here as functions; their model class and tracker are still to come (issue #16)."""
+family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002), its RBF
+networks, and ``GLEModel`` (``fit_gle``), the closed-form GLE that GLE-GbPF walks on."""
 
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
