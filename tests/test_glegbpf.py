@@ -84,6 +84,7 @@ def test_the_triple_resampling_draws_with_the_probabilities_it_claims():
     assert chisquare(counts, expected * n).pvalue > 1e-3, (counts, expected * n)
 
 
+@pytest.mark.slow
 def test_glegbpf_tracks_through_the_experiment(tmp_path):
     """Registered as ``glegbpf``: the experiment fits its GLE on the training motion and tracks."""
     from jaxtrack.experiment import ExperimentConfig, run_experiment

@@ -131,6 +131,7 @@ def test_sampling_is_keyed_and_equal_jitted_or_not(scene):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y[2]))
 
 
+@pytest.mark.slow
 def test_sampled_likelihood_jit_and_behind_camera(scene, getkey):
     motion, rig, observations = scene
     sampled = SampledSilhouetteLikelihood.from_dense(make_silhouette_likelihood(motion.body, rig, window=None))

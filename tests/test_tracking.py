@@ -269,6 +269,7 @@ def test_batched_sequences_equal_separate_tracks():
         track_sequences(tracker, keys, [first, scene("S1", 3, frames=5)[1]])
 
 
+@pytest.mark.slow
 def test_tracking_on_sampled_pixels(tmp_path, capsys):
     """``prepare_test(pixel_samples=n)``: the sampled likelihood with one ``PixelSample`` per
     frame as the observations; runs batched in one call equal separate runs, and the estimates
