@@ -99,7 +99,8 @@ def _fit(args) -> int:
 
     from .body import GLOBAL_DOFS, joint_angles
     from .io import check_output, load_sequence
-    from .manifold import fit_model, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
+    from .manifold import SPECTRAL_GRAPHS, fit_spectral, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
+    from .tracking import DEFAULT_LATENT_DIMS
 
     args.out = check_output(args.out, args.motion)
     sequences, names = [], []
@@ -116,7 +117,11 @@ def _fit(args) -> int:
         raise ValueError("the motion files have different pose layouts")
     Y = np.concatenate(sequences)
     starts = tuple(int(v) for v in np.cumsum([0] + [len(s) for s in sequences]))
-    if args.model == "gplvm":
+    if args.latent_dim is None:
+        args.latent_dim = DEFAULT_LATENT_DIMS.get(args.model, 2)
+    if args.model in SPECTRAL_GRAPHS:
+        model = fit_spectral(sequences, args.model, latent_dim=args.latent_dim)
+    elif args.model == "gplvm":
         model = make_gplvm(Y, args.latent_dim)
     elif args.model == "bc-gplvm":
         model = make_bc_gplvm(Y, args.latent_dim)
@@ -126,7 +131,7 @@ def _fit(args) -> int:
         model = make_sparse_gplvm(Y, args.latent_dim, num_inducing=min(args.inducing, Y.shape[0]))
     else:
         model = make_gpdm(sequences, args.latent_dim)
-    fitted, info = fit_model(model, max_steps=args.steps, progress=True)
+    fitted, info = model.fit(max_steps=args.steps, progress=True)
     kept_layout = layout[GLOBAL_DOFS:]
     save_model(args.out, fitted, sequence_starts=starts, extra={"pose_layout": kept_layout, "sequences": names})
     print(f"wrote {args.out}: {type(fitted).__name__}, {Y.shape[0]} frames, objective {info.objective:.6g} after {info.steps} steps")
@@ -333,10 +338,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
-    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm"), default="bc-gplvm")
+    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm", "gle", "tle", "le"),
+                     default="bc-gplvm", help="a GP model (fitted by L-BFGS), or a Laplacian Eigenmap (closed form) with its "
+                                              "RBF networks: gle (002; the files' gait cycles are its repetitions), tle "
+                                              "(temporal neighbours), le (nearest neighbours in pose space) (default: %(default)s)")
     fit.add_argument("--inducing", type=int, default=150, help="inducing points of sparse-gplvm (default: %(default)s)")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
-    fit.add_argument("--latent-dim", type=int, default=2)
+    fit.add_argument("--latent-dim", type=int, help="latent dimension (default: 2 for the GP models, 3 for gle, tle, le)")
     fit.add_argument("--steps", type=int, default=500, help="L-BFGS iterations at most (default: %(default)s)")
     fit.add_argument("--out", required=True, help="output model file (e.g. model.eqx)")
     fit.set_defaults(run=_fit)
@@ -355,7 +363,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
     experiment.add_argument("--batch-runs", action="store_true",
                             help="track each method's runs in one compiled call (vmapped over the runs' keys)")
-    experiment.add_argument("--latent-dim", type=int, default=2)
+    experiment.add_argument("--latent-dim", type=int,
+                            help="latent dimension of every manifold (default: 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
     experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
@@ -377,7 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
                                  "of the pose or latent point where the dynamics support it) fitted on the validation motion "
                                  f"(default: each tracker's own: {_velocity_defaults()})")
     experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
-                            help="the manifold of every manifold tracker (default: each tracker's own: "
+                            help="the manifold of every manifold tracker of its family (GP: bc-gplvm, gpdm; Laplacian "
+                                 "Eigenmaps: gle, tle, le; the other family keeps its own) (default: each tracker's own: "
                                  f"{_manifold_defaults()})")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
@@ -385,7 +395,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
     track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
-    track.add_argument("--model", required=True, help="a model file from 'jaxtrack fit' (a gpdm for gpapf; mrpf-alg1 needs a bc-gplvm)")
+    track.add_argument("--model", required=True,
+                       help="a model file from 'jaxtrack fit' (a gpdm for gpapf; mrpf-alg1 needs a bc-gplvm; glegbpf a gle, tle or le)")
     track.add_argument("--validation", required=True,
                        help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())

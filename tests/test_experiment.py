@@ -32,11 +32,15 @@ def test_bad_experiment_inputs(sequences):
     with pytest.raises(ValueError, match="manifold must be one of"):
         ExperimentConfig(manifold="isomap")
     # Each manifold tracker runs on its paper's manifold unless one is named for all.
-    assert ExperimentConfig().manifold_kinds == ("gpdm",)
+    assert ExperimentConfig().manifold_kinds == ("gpdm", "gle")
     assert ExperimentConfig(methods=("mrpf", "mrpf-alg1", "gpapf")).manifold_kinds == ("gpdm", "bc-gplvm")
-    assert ExperimentConfig(manifold="bc-gplvm").manifold_kinds == ("bc-gplvm",)
+    # A named manifold is every tracker's of its family (GP or Laplacian Eigenmap); the other family keeps its own.
+    assert ExperimentConfig(manifold="bc-gplvm").manifold_kinds == ("bc-gplvm", "gle")
+    assert ExperimentConfig(manifold="tle").manifold_kinds == ("gpdm", "tle")
+    assert ExperimentConfig(methods=("glegbpf", "sir")).manifold_kinds == ("gle",)
     assert ExperimentConfig(methods=("sir", "apf")).manifold_kinds == ()
-    assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf")] == [None, "gpdm", "gpdm", "gpdm"]
+    assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf", "glegbpf")] == [
+        None, "gpdm", "gpdm", "gpdm", "gle"]
     # Each tracker carries its own velocity default (the one-layer manifold trackers) unless one is named for all.
     assert [ExperimentConfig().velocity_of(m) for m in ("sir", "apf", "mrpf", "gpapf", "latentpf")] == [False, False, True, False, True]
     assert all(ExperimentConfig(velocity=True).velocity_of(m) for m in ("sir", "gpapf"))

@@ -297,7 +297,7 @@ def test_cmu_walk_and_jog_manifold(shared_data):
 def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
 
-    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "SparseGPLVM"}
+    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "SparseGPLVM", "SpectralEmbedding"}
     walk, _ = walk_jog
     Y = walk.pose[:30, 6:]
     for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2)):

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from .._custom_types import Array, Float
 from ..body import GLOBAL_DOFS as GLOBAL_DIMS
-from ..manifold import GLEModel
+from ..manifold import SpectralEmbedding
 from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_step
 
 
@@ -30,7 +30,7 @@ class GLEGraphWalk(AbstractDynamics):
     """The graph-based propagation of GLE-GbPF over ``[global entries (6), latent point (n)]``.
 
     Attributes:
-        model: the fitted GLE.
+        model: the fitted embedding (GLE; LE or temporal LE walk their temporal graph only).
         s_global: (6,) step standard deviation of the global entries (metres, radians).
         noise_threshold: Mahalanobis radius of 002 eq. 10's Gaussian subset.
         noise_scale: multiplies eq. 10's standard deviations. A mixture component spans many
@@ -38,7 +38,7 @@ class GLEGraphWalk(AbstractDynamics):
             frame's latent step; 0.3 (the default) tracked best of 0.15-1 on the demo's scenes.
     """
 
-    model: GLEModel
+    model: SpectralEmbedding
     s_global: Float[Array, " g"]
     noise_threshold: float = 2.0
     noise_scale: float = 0.3
@@ -47,13 +47,19 @@ class GLEGraphWalk(AbstractDynamics):
         check_scale_vector("s_global", self.s_global, GLOBAL_DIMS)
 
     def init(self, key, pose, num_particles):
+        """Every particle at the initial pose's global entries and at the latent point of the
+        training frame nearest to its joint angles (standardised). Not the inverse network: on a
+        subject outside the training set it extrapolates, and its encode -> decode lands 110-240
+        mm from the pose where the nearest training frame is 60-100 mm away (benchmarks/
+        gle_cross_subject.py's protocols)."""
         del key
         pose = pose.astype(self.s_global.dtype)
-        latent = self.model.encode(pose[None, GLOBAL_DIMS:])[0]
-        return copies(jnp.concatenate([pose[:GLOBAL_DIMS], latent]), num_particles)
+        standardised = (pose[GLOBAL_DIMS:] - self.model.mean) / self.model.scale
+        nearest = jnp.argmin(jnp.sum((self.model.data - standardised) ** 2, axis=1))
+        return copies(jnp.concatenate([pose[:GLOBAL_DIMS], self.model.latent[nearest]]), num_particles)
 
     def to_pose(self, states):
-        return jnp.concatenate([states[:, :GLOBAL_DIMS], self.model.decode(states[:, GLOBAL_DIMS:])], axis=1)
+        return jnp.concatenate([states[:, :GLOBAL_DIMS], self.model.decode(states[:, GLOBAL_DIMS:])[0]], axis=1)
 
     def graph_step(self, key, latent: Float[Array, "n q"]):
         """Steps 1-3: the training frame each particle moves to, (N,) indices."""
@@ -86,7 +92,7 @@ class GLEGraphWalk(AbstractDynamics):
         return jnp.concatenate([gaussian_step(global_key, states[:, :GLOBAL_DIMS], self.s_global * factor), moved], axis=1)
 
 
-def fit_gle_graph_walk(model: GLEModel, validation, *, floor: float = 1e-3) -> GLEGraphWalk:
+def fit_gle_graph_walk(model: SpectralEmbedding, validation, *, floor: float = 1e-3) -> GLEGraphWalk:
     """The graph walk on ``model`` with the global entries' step scales fitted as the RMS
     frame-to-frame steps of the validation poses (a list of (T, D) arrays)."""
     import numpy as np

@@ -20,7 +20,8 @@ class ExperimentConfig:
         batch_runs: track a tracker's runs on a test sequence in one compiled call (``jax.vmap``
             over the runs' keys; ``tracking.track_runs``): the same runs up to float rounding,
             fewer dispatches; frames/s is then the batch's frames over its time, compile included.
-        latent_dim: dimension of the BC-GPLVM latent space.
+        latent_dim: dimension of every manifold's latent space (None: each kind's own,
+            ``tracking.DEFAULT_LATENT_DIMS``: 2 for the GP models, 3 for the spectral ones).
         fit_steps: L-BFGS iterations for the manifold.
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
         frames: track only the first ``frames`` frames of each test sequence (None: all).
@@ -52,7 +53,7 @@ class ExperimentConfig:
     layers: int = 5
     runs: int = 5
     batch_runs: bool = False
-    latent_dim: int = 2
+    latent_dim: int | None = None
     fit_steps: int = 300
     likelihood_scale: float = 100.0
     frames: int | None = None
@@ -75,7 +76,7 @@ class ExperimentConfig:
             raise ConfigurationError(f"runs must be positive, got {self.runs}")
         if self.frames is not None and self.frames < 1:
             raise ConfigurationError(f"frames must be positive, got {self.frames}")
-        if self.latent_dim < 1 or self.fit_steps < 1:
+        if (self.latent_dim is not None and self.latent_dim < 1) or self.fit_steps < 1:
             raise ConfigurationError("latent_dim and fit_steps must be positive")
         if not self.likelihood_scale > 0:
             raise ConfigurationError(f"likelihood_scale must be positive, got {self.likelihood_scale}")

@@ -148,7 +148,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         start = time.perf_counter()
         model, fit_info, starts = fit_manifold(train_poses, config.latent_dim, config.fit_steps, kind=kind, progress=progress)
         fit_s = time.perf_counter() - start
-        say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {config.latent_dim}, "
+        say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
         results["manifolds"][kind] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "objective": fit_info.objective,
                                       "steps": fit_info.steps, "fit_s": fit_s}

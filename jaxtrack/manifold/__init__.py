@@ -2,7 +2,8 @@
 (kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
 manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
 family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002), its RBF
-networks, and ``GLEModel`` (``fit_gle``), the closed-form GLE that GLE-GbPF walks on."""
+networks, and ``SpectralEmbedding`` (``fit_spectral``: LE, temporal LE or GLE with its RBF
+networks, fitted in closed form), the manifold GLE-GbPF walks on."""
 
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
@@ -20,8 +21,6 @@ from ._eigenmaps import stylistic_neighbours as stylistic_neighbours
 from ._eigenmaps import temporal_graph as temporal_graph
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
-from ._gle import GLEModel as GLEModel
-from ._gle import fit_gle as fit_gle
 from ._kernels import LinearRBFKernel as LinearRBFKernel
 from ._kernels import RBFBiasKernel as RBFBiasKernel
 from ._kernels import gaussian_log_marginal as gaussian_log_marginal
@@ -40,10 +39,12 @@ from ._models import make_gplvm as make_gplvm
 from ._models import pca as pca
 from ._models import predict as predict
 from ._plot import plot_latent as plot_latent
+from ._predictor import AbstractPredictor as AbstractPredictor
 from ._predictor import GPPredictor as GPPredictor
 from ._prior import ManifoldPrior as ManifoldPrior
 from ._prior import make_manifold_prior as make_manifold_prior
 from ._rbf import RBFNetwork as RBFNetwork
+from ._rbf import RBFPredictor as RBFPredictor
 from ._rbf import fit_gaussian_mixture as fit_gaussian_mixture
 from ._rbf import fit_rbf_network as fit_rbf_network
 from ._serialise import ModelFileError as ModelFileError
@@ -53,3 +54,7 @@ from ._serialise import save_model as save_model
 from ._sparse import SparseGPLVM as SparseGPLVM
 from ._sparse import make_sparse_gplvm as make_sparse_gplvm
 from ._sparse import sparse_log_marginal as sparse_log_marginal
+from ._spectral import SPECTRAL_GRAPHS as SPECTRAL_GRAPHS
+from ._spectral import SpectralEmbedding as SpectralEmbedding
+from ._spectral import fit_gle as fit_gle
+from ._spectral import fit_spectral as fit_spectral

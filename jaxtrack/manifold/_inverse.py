@@ -24,7 +24,7 @@ def optimise_latent(
 ) -> Float[Array, "m q"]:
     """Latent points (m, q) of standardised poses (m, a) by 003 eq. 5 (module docstring)."""
     start = training_latent[jnp.argmin(squared_distances(standardised, training_data), axis=1)]
-    noise = predictor.kernel.noise
+    noise = predictor.noise
     dims = standardised.shape[1]
 
     def objective(z, y):

@@ -9,8 +9,6 @@ import os
 import jax.numpy as jnp
 import numpy as np
 
-from ._models import predict
-
 
 def plot_latent(model, path: str, *, sequence_starts=None, labels=None, resolution: int = 80, dpi: int = 110) -> str:
     """Write a PNG of the first two latent dimensions of a fitted model.
@@ -32,10 +30,11 @@ def plot_latent(model, path: str, *, sequence_starts=None, labels=None, resoluti
     gx, gy = np.meshgrid(np.linspace(lo[0] - pad[0], hi[0] + pad[0], resolution), np.linspace(lo[1] - pad[1], hi[1] + pad[1], resolution))
     grid = np.zeros((resolution * resolution, Z.shape[1]))
     grid[:, 0], grid[:, 1] = gx.ravel(), gy.ravel()
-    _, var = predict(model, jnp.asarray(grid, model.data.dtype))
+    predictor = model.predictor()
+    _, var = predictor(jnp.asarray(grid, model.data.dtype))
     fig, ax = plt.subplots(figsize=(5.5, 4.5))
     image = ax.imshow(
-        np.log10(np.asarray(var) + float(model.kernel.noise)).reshape(resolution, resolution),
+        np.log10(np.asarray(var) + float(predictor.noise)).reshape(resolution, resolution),
         extent=(gx.min(), gx.max(), gy.min(), gy.max()), origin="lower", cmap="gray", aspect="auto",
     )
     fig.colorbar(image, ax=ax, label="log10 predictive variance")

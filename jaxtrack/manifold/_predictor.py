@@ -10,6 +10,8 @@ form holds with the inducing points ``U`` in place of ``Z``: ``mu(z) = k(z, U) S
 
 from __future__ import annotations
 
+import abc
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -18,7 +20,39 @@ from .._custom_types import Array, Float
 from ._kernels import LinearRBFKernel, RBFBiasKernel
 
 
-class GPPredictor(eqx.Module):
+class AbstractPredictor(eqx.Module):
+    """A manifold's predictive map from latent points to poses, as the trackers use it: a GP's
+    (``GPPredictor``) or an RBF network's (``RBFPredictor``, for the Laplacian Eigenmaps family).
+
+    Attributes:
+        mean, scale: (D,) the training data standardisation (pose units).
+    """
+
+    mean: eqx.AbstractVar[Float[Array, " d"]]
+    scale: eqx.AbstractVar[Float[Array, " d"]]
+
+    @abc.abstractmethod
+    def __call__(self, Z: Float[Array, "p q"]) -> tuple[Float[Array, "p d"], Float[Array, " p"]]:
+        """Predictive mean (P, D) in pose units and variance (P,) in standardised units (without
+        ``noise``)."""
+
+    @property
+    @abc.abstractmethod
+    def noise(self) -> Float[Array, ""]:
+        """The observation noise variance (standardised units) a new pose adds to the variance."""
+
+    @property
+    @abc.abstractmethod
+    def latent_dim(self) -> int:
+        """q."""
+
+    @property
+    @abc.abstractmethod
+    def pose_dim(self) -> int:
+        """D."""
+
+
+class GPPredictor(AbstractPredictor):
     """Precomputed predictive map from latent points to poses.
 
     Attributes:
@@ -44,6 +78,10 @@ class GPPredictor(eqx.Module):
         mean = self.mean + self.scale * (k @ self.mean_weights)
         variance = self.kernel.diag(Z) - jnp.sum((k @ self.variance_matrix) * k, axis=1)
         return mean, jnp.maximum(variance, 0.0)
+
+    @property
+    def noise(self) -> Float[Array, ""]:
+        return self.kernel.noise
 
     @property
     def latent_dim(self) -> int:

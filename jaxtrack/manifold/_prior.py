@@ -13,14 +13,15 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from .._tree import cast_floating
 from ._inverse import optimise_latent
-from ._predictor import GPPredictor
+from ._predictor import AbstractPredictor, GPPredictor
 
 ENCODE_MAX_STEPS = 100  # BFGS iterations of 003 eq. 5 per pose (ample from the nearest training point)
 
 
 class ManifoldPrior(eqx.Module):
     """Attributes:
-        predictor: the GP predictive map (latent -> joint angles, pose units).
+        predictor: the predictive map (latent -> joint angles, pose units): a GP's, or an RBF
+            network's for the Laplacian Eigenmaps family.
         back_constraint: the map from standardised joint angles to latent points, or None.
         training_latent: (N, q) the training latent points.
         training_data: (N, Da) the standardised training poses they came from.
@@ -29,7 +30,7 @@ class ManifoldPrior(eqx.Module):
             variance)`` (a GPDM's, 001 eqs. 7-9), or None for manifolds without dynamics.
     """
 
-    predictor: GPPredictor
+    predictor: AbstractPredictor
     back_constraint: eqx.Module | None
     training_latent: Float[Array, "n q"]
     training_data: Float[Array, "n a"]

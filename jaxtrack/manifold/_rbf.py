@@ -25,6 +25,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..errors import ConfigurationError
+from ._predictor import AbstractPredictor
 
 
 class RBFNetwork(eqx.Module):
@@ -71,6 +72,43 @@ class RBFNetwork(eqx.Module):
         weight = chosen * self.mixing[None, :]
         weight = weight / jnp.sum(weight, axis=1, keepdims=True)
         return jnp.einsum("ng,gij->nij", weight, self.covariances)
+
+
+class RBFPredictor(AbstractPredictor):
+    """An RBF network as a manifold's predictive map (the Laplacian Eigenmaps family's
+    ``predictor``): the mean is the network's output (002 eq. 8); the network has no predictive
+    variance of its own, so the variance (standardised units, without ``noise``) is
+    ``1 - max_j phi_j(z)``: 0 on a Gaussian's centre, growing to 1 (the standardised data's own
+    variance, as a unit-variance GP's far from its data) where no activation covers the point.
+    ``noise`` is the network's training residual.
+
+    Attributes:
+        network: the forward network, latent -> standardised joint angles.
+        mean, scale: (D,) joint angles = mean + scale * standardised.
+        residual: the network's mean squared residual on its training set.
+    """
+
+    network: RBFNetwork
+    mean: Float[Array, " d"]
+    scale: Float[Array, " d"]
+    residual: Float[Array, ""]
+
+    def __call__(self, Z):
+        activations = self.network.activations(Z)
+        mean = self.mean + self.scale * (activations @ self.network.weights + self.network.bias)
+        return mean, 1.0 - jnp.max(activations, axis=1)
+
+    @property
+    def noise(self):
+        return self.residual
+
+    @property
+    def latent_dim(self) -> int:
+        return self.network.centres.shape[1]
+
+    @property
+    def pose_dim(self) -> int:
+        return self.network.weights.shape[1]
 
 
 def fit_gaussian_mixture(X, components: int, *, seed: int = 0, iterations: int = 200, ridge: float = 1e-3,

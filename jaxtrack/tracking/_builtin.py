@@ -16,7 +16,7 @@ BUILTIN_RECIPES = (
     _velocity.APF_RECIPE,
     _glegbpf.RECIPE,
 )
-PAPER_TRACKERS = ("sir", "apf", "mrpf", "gpapf", "latentpf")  # what an experiment runs by default (000 Table 1 + 001 + 003)
+PAPER_TRACKERS = ("sir", "apf", "mrpf", "gpapf", "latentpf", "glegbpf")  # what an experiment runs by default (000-003)
 
 for _recipe in BUILTIN_RECIPES:
     register_tracker(_recipe, replace=True)

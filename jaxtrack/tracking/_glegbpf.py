@@ -1,20 +1,22 @@
 """GLE-GbPF (002 Alg. 1): a particle filter whose propagation is the graph walk over a
-Generalised Laplacian Eigenmap fitted on the training motion (its own manifold, not the GP
-experiment manifold), resampling by weight every frame, estimate the weighted mean pose. Like
-the other one-layer manifold trackers it carries a Kalman-tracked root velocity by default
-(its root otherwise takes a zero-mean walk and is left behind on a jog: 97 against 26 mm on
-the demo's S2 jog)."""
+Generalised Laplacian Eigenmap fitted on the training motion (``SpectralEmbedding``; the
+experiment fits it as the "gle" manifold, or "tle" / "le" for the ablations), resampling by
+weight every frame, estimate the weighted mean pose. Like the other one-layer manifold trackers
+it carries a Kalman-tracked root velocity by default (its root otherwise takes a zero-mean walk
+and is left behind on a jog: 97 against 26 mm on the demo's S2 jog)."""
 
-from ..body import joint_angles
 from ..dynamics import fit_gle_graph_walk
 from ..filters import SIR
-from ..manifold import fit_gle
-from ._registry import TrackerRecipe
+from ..manifold import SpectralEmbedding
+from ._registry import SPECTRAL_MANIFOLD_KINDS, TrackerRecipe
 
 
 def fit(key, motion):
     del key
-    return fit_gle_graph_walk(fit_gle([joint_angles(s) for s in motion.training]), motion.validation)
+    if not isinstance(motion.model, SpectralEmbedding):
+        raise ValueError(f"GLE-GbPF walks a Laplacian-Eigenmap embedding ('jaxtrack fit --model gle'), got "
+                         f"{type(motion.model).__name__}")
+    return fit_gle_graph_walk(motion.model, motion.validation)
 
 
 def build(dynamics, likelihood, budget):
@@ -22,4 +24,4 @@ def build(dynamics, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("glegbpf", "GLE-GbPF", "graph-based particle filter on a Generalised Laplacian Eigenmap (002 Alg. 1)",
-                       fit, build, velocity=True)
+                       fit, build, needs_manifold=True, manifold="gle", manifolds=SPECTRAL_MANIFOLD_KINDS, velocity=True)

@@ -23,8 +23,8 @@ from ..dynamics import AbstractDynamics, VelocityFit, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import SampledSilhouetteLikelihood, calibrate_shape, check_silhouettes, make_silhouette_likelihood, sample_frames
-from ..manifold import fit_model, make_bc_gplvm, make_gpdm
-from ._registry import MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
+from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gplvm, make_gpdm
+from ._registry import DEFAULT_LATENT_DIMS, MANIFOLD_KINDS, SPECTRAL_MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
@@ -71,20 +71,27 @@ def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
                              "rate and track at it; resample with 'jaxtrack convert --fps'")
 
 
-def fit_manifold(train_poses: list[np.ndarray], latent_dim: int, steps: int, *, kind: str = "bc-gplvm", progress: bool = False):
+def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: int, *, kind: str = "bc-gplvm",
+                 progress: bool = False):
     """A manifold of the joint angles of the training pose sequences, in float64: a BC-GPLVM
-    (000 eqs. 21-22) or a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows).
+    (000 eqs. 21-22), a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows), or an LE,
+    temporal LE or GLE embedding with its RBF networks (002; closed form, ``steps`` unused).
+    ``latent_dim`` None: the kind's default (``DEFAULT_LATENT_DIMS``).
 
     Returns:
         ``(model, FitInfo, training_starts)``.
     """
     if kind not in MANIFOLD_KINDS:
         raise ValueError(f"manifold kind must be one of {MANIFOLD_KINDS}, got {kind!r}")
+    latent_dim = DEFAULT_LATENT_DIMS[kind] if latent_dim is None else latent_dim
     angles = [joint_angles(p) for p in train_poses]
     starts = tuple(int(v) for v in np.cumsum([0] + [len(p) for p in train_poses]))
     with jax.enable_x64(True):
-        model = make_bc_gplvm(np.concatenate(angles), latent_dim) if kind == "bc-gplvm" else make_gpdm(angles, latent_dim)
-        fitted, info = fit_model(model, max_steps=steps, progress=progress)
+        if kind in SPECTRAL_MANIFOLD_KINDS:
+            model = fit_spectral(angles, kind, latent_dim=latent_dim)
+        else:
+            model = make_bc_gplvm(np.concatenate(angles), latent_dim) if kind == "bc-gplvm" else make_gpdm(angles, latent_dim)
+        fitted, info = model.fit(max_steps=steps, progress=progress)
     return fitted, info, starts
 
 
@@ -100,6 +107,7 @@ def motion_data(train_poses, validation_poses, model=None, training_starts=None)
         validation=tuple(np.asarray(p, np.float64) for p in validation_poses),
         manifold=manifold,
         training_starts=training_starts,
+        model=model,
     )
 
 
@@ -112,7 +120,7 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 
 
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
-                  velocity_from: list[np.ndarray] | None = None):
+                  velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
     With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
@@ -142,7 +150,7 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     return eqx.tree_at(lambda f: f.refine, tracker, refinement, is_leaf=lambda x: x is None)
 
 
-def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray]) -> VelocityFit:
+def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray] | tuple[np.ndarray, ...]) -> VelocityFit:
     """The velocity ``dynamics`` supports (``fit_state_velocity``), fitted in float64 on the
     validation poses."""
     with jax.enable_x64(True):
@@ -313,6 +321,10 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     recipe = get_tracker(method)
     budget_ = Budget(budget, layers, refine_steps)
     recipe.check_budget(budget_)
+    spectral = isinstance(model, SpectralEmbedding)
+    if recipe.needs_manifold and spectral != (recipe.manifold in SPECTRAL_MANIFOLD_KINDS):
+        raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.manifolds)} manifold, and the model file holds a "
+                         f"{type(model).__name__}{f' ({model.graph})' if spectral else ''}")
     check_model_layout(model, header, sequence, name)
     check_frame_rates([sequence, validation], [name, "the validation sequence"])
     key = jax.random.key(seed)

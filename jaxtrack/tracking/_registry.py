@@ -20,7 +20,12 @@ from ..manifold import ManifoldPrior
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
 # 2 CPU cores (benchmarks/bench_gradient.py).
 GRADIENT_COST = 50.0
-MANIFOLD_KINDS = ("bc-gplvm", "gpdm")  # what tracking.fit_manifold fits: 000's BC-GPLVM, 001's GPDM
+GP_MANIFOLD_KINDS = ("bc-gplvm", "gpdm")  # 000's BC-GPLVM, 001's GPDM
+SPECTRAL_MANIFOLD_KINDS = ("gle", "tle", "le")  # 002's Laplacian Eigenmaps family, with RBF networks
+MANIFOLD_KINDS = GP_MANIFOLD_KINDS + SPECTRAL_MANIFOLD_KINDS  # what tracking.fit_manifold fits
+# Latent dimensions when the experiment names none: 2 for the GP models (000, 001), 3 for the
+# spectral ones (GLE in 2-D folds walks and jogs of several subjects onto each other).
+DEFAULT_LATENT_DIMS = {"bc-gplvm": 2, "gpdm": 2, "gle": 3, "tle": 3, "le": 3}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +79,8 @@ class MotionData:
         training: (T_i, D) pose sequences the manifold was fitted on.
         validation: (T_i, D) pose sequences held out for the dynamics (000 sec. 5.2).
         manifold: the fitted manifold precomputed for tracking, or None.
+        model: the fitted manifold itself (an ``AbstractManifold``), or None: for trackers that
+            walk a model's own structure (GLE-GbPF walks a ``SpectralEmbedding``'s graph).
         training_starts: first frame of each training sequence in the manifold's data, ending
             with the total.
     """
@@ -82,6 +89,7 @@ class MotionData:
     validation: tuple[np.ndarray, ...]
     manifold: ManifoldPrior | None = None
     training_starts: tuple[int, ...] | None = None
+    model: Any = None
 
     @property
     def pose_dim(self) -> int:
@@ -103,7 +111,7 @@ class TrackerRecipe:
             ``budget.particles`` particles, annealed ones ``budget.per_layer`` per layer (both
             leave room for gradient-refined moves, which ``build_tracker`` adds).
         needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
-        manifold: the manifold kind the tracker runs on by default ("bc-gplvm" or "gpdm"),
+        manifold: the manifold kind the tracker runs on by default (one of ``MANIFOLD_KINDS``),
             fitted for it unless the experiment names one for every tracker.
         manifolds: the manifold kinds the tracker can run on.
         velocity: whether the tracker's dynamics carry a Kalman-tracked velocity
@@ -122,7 +130,7 @@ class TrackerRecipe:
     build: Callable[[Any, Any, Budget], Any]
     needs_manifold: bool = False
     manifold: str = "bc-gplvm"
-    manifolds: tuple[str, ...] = MANIFOLD_KINDS
+    manifolds: tuple[str, ...] = GP_MANIFOLD_KINDS
     velocity: bool = False
     annealed: bool = False
     min_layers: int = 1
@@ -138,11 +146,18 @@ class TrackerRecipe:
 
     def manifold_for(self, requested: str | None) -> str:
         """The manifold kind this tracker runs on when the experiment asks for ``requested``
-        (None: the tracker's own); raises ``ValueError`` if it cannot run on it."""
-        kind = self.manifold if requested is None else requested
-        if kind not in self.manifolds:
-            raise ValueError(f"{self.label} cannot run on a {kind} manifold (it runs on: {', '.join(self.manifolds)})")
-        return kind
+        (None: the tracker's own). A request names the manifold of every tracker of its family
+        (GP models: ``GP_MANIFOLD_KINDS``; Laplacian Eigenmaps: ``SPECTRAL_MANIFOLD_KINDS``):
+        a tracker of the other family keeps its own. Raises ``ValueError`` if the tracker
+        cannot run on a kind of its own family."""
+        if requested is None:
+            return self.manifold
+        family = SPECTRAL_MANIFOLD_KINDS if self.manifold in SPECTRAL_MANIFOLD_KINDS else GP_MANIFOLD_KINDS
+        if requested not in family:
+            return self.manifold
+        if requested not in self.manifolds:
+            raise ValueError(f"{self.label} cannot run on a {requested} manifold (it runs on: {', '.join(self.manifolds)})")
+        return requested
 
     def velocity_for(self, requested: bool | None) -> bool:
         """Whether this tracker carries a velocity when the experiment asks for ``requested``
