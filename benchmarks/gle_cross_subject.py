@@ -156,6 +156,8 @@ def main():
     parser.add_argument("--budgets", type=int, nargs="+", default=[500, 1500])
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--views", type=int, default=3)
+    parser.add_argument("--velocity", choices=["own", "on", "off"], default="own",
+                        help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
     parser.add_argument("--train-frames", type=int, default=240,
                         help="first frames of each training take (60 Hz; 240: three to four walk cycles) (default: %(default)s)")
     parser.add_argument("--fit-steps", type=int, default=300)
@@ -186,7 +188,7 @@ def main():
                     for i, (t, frames) in enumerate(tests)]
         for budget in args.budgets:
             config = ExperimentConfig(methods=tuple(args.methods), budget=budget, runs=args.runs, fit_steps=args.fit_steps,
-                                      seed=args.seed)
+                                      seed=args.seed, velocity={"own": None, "on": True, "off": False}[args.velocity])
             start = time.perf_counter()
             results = run_experiment(train, validation, test, config, names={"test": test_names}, progress=False, animations=False)
             seconds = time.perf_counter() - start
@@ -197,13 +199,13 @@ def main():
                 rows.append({
                     "protocol": name, "test": test_name, "budget": budget, "views": args.views, "frames": scene.num_frames,
                     "train": [f"{t[0]}-{t[1]}" for t in train_takes], "train_frames": args.train_frames, "runs": args.runs,
-                    "body_factors": BODY_FACTORS, "seconds": seconds,
+                    "body_factors": BODY_FACTORS, "seconds": seconds, "velocity": args.velocity,
                     "manifolds": results["manifolds"],
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
-                                    "manifold": config.manifold_of(m)} for m in args.methods},
+                                    "manifold": config.manifold_of(m), "velocity": config.velocity_of(m)} for m in args.methods},
                 })
             write_json(rows, args.json)
             jax.clear_caches()  # every experiment compiles its own trackers (see real_motion.py)

@@ -151,7 +151,7 @@ def test_experiment_demo(tmp_path):
     results, paths = run_demo(str(tmp_path / "demo"), frames=8, budget=100, runs=1, verbose=False)
     assert set(results["sequences"]) == {"S1 walk", "S2 jog"}
     for per_method in results["sequences"].values():
-        assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf"}
+        assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf", "glegbpf"}
         assert all(np.isfinite(v["error_mm_mean"]) for v in per_method.values())
     assert "| S1 walk |" in Path(paths["table"]).read_text()
 

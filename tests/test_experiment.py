@@ -93,20 +93,20 @@ def test_experiment_end_to_end(sequences, tmp_path):
     results = run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]}, progress=False)
     saved = json.loads((tmp_path / "results.json").read_text())
     per_method = saved["sequences"]["walk.npz"]
-    assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf"}
+    assert set(per_method) == {"sir", "apf", "mrpf", "gpapf", "latentpf", "glegbpf"}
     for values in per_method.values():
         assert np.isfinite(values["error_mm_mean"]) and values["error_mm_mean"] < 400
         assert len(values["per_frame_error_mm"]) == 6 and len(values["error_mm_per_run"]) == 2
         assert set(values["per_group_error_mm"]) == {"torso", "head", "arms", "legs"}
     table = (tmp_path / "table.md").read_text()
-    assert table.startswith("| Sequence | SIR | APF | MRPF | GPAPF | LatentPF |") and "walk.npz" in table
+    assert table.startswith("| Sequence | SIR | APF | MRPF | GPAPF | LatentPF | GLE-GbPF |") and "walk.npz" in table
     assert (tmp_path / "error_curves.png").stat().st_size > 1000
     assert list(tmp_path.glob("walk_*.gif"))
     # By default every manifold tracker runs on one GPDM, and the one-layer ones carry a velocity.
     assert results["manifold"]["class"] == "GPDM"
-    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"gpdm": "GPDM"}
+    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"gpdm": "GPDM", "gle": "SpectralEmbedding"}
     assert results["dynamics"]["gpapf"]["0.class"] == "GPDMLatentDynamics"
-    assert set(results["velocity"]) == {"mrpf", "latentpf"} and results["velocity"]["mrpf"]["entries"] == 6
+    assert set(results["velocity"]) == {"mrpf", "latentpf", "glegbpf"} and results["velocity"]["mrpf"]["entries"] == 6
 
 
 @pytest.mark.slow

@@ -151,6 +151,7 @@ def test_spectral_manifolds_refuse_bad_training_data():
         fit_spectral([np.full((30, 10), np.nan)], "le")
 
 
+@pytest.mark.slow
 def test_fit_cli_writes_a_gle_model_that_glegbpf_tracks_with(tmp_path):
     """``jaxtrack fit --model gle`` on two subjects' files, ``plot-latent`` on it, and
     ``jaxtrack track --method glegbpf`` with it."""
