@@ -24,7 +24,8 @@ GLE, MRPF / GPAPF / LatentPF on a GPDM, 2-D).
         --runs 5 --budgets 500 1500 --json gle_cross_subject.json
 
 ``--plot-latent PATH`` draws the LE and GLE embeddings of the combo training sets coloured by
-subject and by gait phase instead (no tracking).
+take and by gait phase instead (no tracking); ``--floors`` measures how close each protocol's
+GLE can get to its test poses.
 """
 
 from __future__ import annotations
@@ -147,6 +148,46 @@ def plot_latent_spaces(folders, parser, path, train_frames):
     print(f"wrote {path}")
 
 
+def manifold_floors(folders, parser, train_frames):
+    """How close each protocol's GLE can get to its test poses, with the true root: the mean
+    joint error (mm) of the training pose nearest in joint angles (radians), and of
+    encode -> decode through the inverse and forward RBF networks."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxtrack.body import forward_kinematics, joint_angles
+    from jaxtrack.evaluation import mean_joint_error_mm
+    from jaxtrack.manifold import fit_spectral
+    from jaxtrack.tracking import sequence_poses
+
+    jax.config.update("jax_enable_x64", True)
+    key = jax.random.key(0)
+    rows = []
+    for name, (train_takes, _, tests) in PROTOCOLS.items():
+        angles = [joint_angles(sequence_poses(load(folders, t, parser, train_frames), t[1], key=key)) for t in train_takes]
+        model = fit_spectral(angles, "gle")
+        training = np.asarray(model.training_poses())
+        for take, frames in tests:
+            sequence = load(folders, take, parser)
+            poses = sequence_poses(sequence, take[1], key=key)[:frames]
+            skeleton = sequence.body().skeleton
+            truth = forward_kinematics(skeleton, jnp.asarray(poses))
+
+            def error(angles_, poses=poses, skeleton=skeleton, truth=truth):
+                estimate = forward_kinematics(skeleton, jnp.asarray(np.concatenate([poses[:, :6], angles_], axis=1)))
+                return float(mean_joint_error_mm(estimate, truth))
+
+            test = joint_angles(poses)
+            nearest = np.argmin(((test[:, None] - training[None]) ** 2).sum(-1), axis=1)
+            row = {"protocol": name, "test": f"{take[0]}-{take[1]}",
+                   "nearest_training_pose_mm": error(training[nearest]),
+                   "encode_decode_mm": error(np.asarray(model.decode(model.encode(jnp.asarray(test)))[0]))}
+            print(row, flush=True)
+            rows.append(row)
+    return rows
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--cmu", help="folder with the converted CMU takes (35_01.npz, ...)")
@@ -163,6 +204,8 @@ def main():
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--plot-latent", metavar="PNG", help="draw the LE and GLE latent spaces instead of tracking")
+    parser.add_argument("--floors", action="store_true",
+                        help="instead of tracking, how close each real protocol's GLE gets to its test poses (mm)")
     parser.add_argument("--json", help="also write the results to this JSON file")
     args = parser.parse_args()
     import jax
@@ -172,6 +215,9 @@ def main():
     folders = {"cmu": args.cmu, "bandai": args.bandai}
     if args.plot_latent:
         plot_latent_spaces(folders, parser, args.plot_latent, args.train_frames)
+        return
+    if args.floors:
+        write_json(manifold_floors(folders, parser, args.train_frames), args.json)
         return
     key = jax.random.key(args.seed)
     rows = []

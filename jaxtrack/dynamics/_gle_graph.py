@@ -48,14 +48,14 @@ class GLEGraphWalk(AbstractDynamics):
 
     def init(self, key, pose, num_particles):
         """Every particle at the initial pose's global entries and at the latent point of the
-        training frame nearest to its joint angles (standardised). Not the inverse network: on a
-        subject outside the training set it extrapolates, and its encode -> decode lands 110-240
-        mm from the pose where the nearest training frame is 60-100 mm away (benchmarks/
-        gle_cross_subject.py's protocols)."""
+        training frame nearest to its joint angles (radians, not standardised: an angle that
+        barely moves in the training set would dominate a standardised distance). Not the
+        inverse network: on a subject outside the training set it extrapolates, and its
+        encode -> decode lands 110-240 mm from the pose where the nearest training frame is
+        60-100 mm away (``benchmarks/gle_cross_subject.py --floors``)."""
         del key
         pose = pose.astype(self.s_global.dtype)
-        standardised = (pose[GLOBAL_DIMS:] - self.model.mean) / self.model.scale
-        nearest = jnp.argmin(jnp.sum((self.model.data - standardised) ** 2, axis=1))
+        nearest = jnp.argmin(jnp.sum((self.model.training_poses() - pose[GLOBAL_DIMS:]) ** 2, axis=1))
         return copies(jnp.concatenate([pose[:GLOBAL_DIMS], self.model.latent[nearest]]), num_particles)
 
     def to_pose(self, states):
