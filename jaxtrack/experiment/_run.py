@@ -150,7 +150,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         fit_s = time.perf_counter() - start
         say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
-        results["manifolds"][kind] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "objective": fit_info.objective,
+        results["manifolds"][kind] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
+                                      "objective": fit_info.objective,
                                       "steps": fit_info.steps, "fit_s": fit_s}
         motions[kind] = motion_data(train_poses, validation_poses, model, starts)
     if config.manifold_kinds:
