@@ -18,7 +18,7 @@ import numpy as np
 
 def setting_label(row: dict) -> str:
     parts = [f"{row['views']} views"]
-    if row.get("latent_dim", 2) != 2:
+    if row.get("latent_dim", 2) not in (2, None):  # None: each manifold kind's own
         parts.append(f"latent dim {row['latent_dim']}")
     if row.get("velocity") is not None:
         parts.append(f"velocity {'on' if row['velocity'] else 'off'}")

@@ -75,8 +75,9 @@ def main():
                         help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
     parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm"],
                         help="the manifold of every manifold tracker (own: each tracker's paper's)")
-    parser.add_argument("--latent-dim", type=int, nargs="+", default=[2],
-                        help="latent dimensions of the manifolds (several: one table each)")
+    parser.add_argument("--latent-dim", type=int, nargs="+", default=[None],
+                        help="latent dimensions of the manifolds (several: one table each; default: each kind's own, "
+                             "2 for the GP models and 3 for GLE)")
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
@@ -111,7 +112,7 @@ def main():
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
-                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim} "
+                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'} "
                       f"({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
