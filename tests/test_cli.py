@@ -86,6 +86,7 @@ def test_a_camera_that_cannot_see_the_person_is_refused_before_tracking():
         prepare_test(seq.replace(camera_t=shifted), "walk", key=jax.random.key(0))
 
 
+@pytest.mark.slow
 def test_track_exits_non_zero_when_it_tracked_blind(tmp_path, capsys):
     """A tracker whose every particle scores -inf: the estimates are written, the degenerate
     fraction printed, and the command exits 3 with the reason (0 with --max-degenerate 1)."""

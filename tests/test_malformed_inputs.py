@@ -142,6 +142,7 @@ def test_malformed_input_gives_one_line_naming_the_file(case, tmp_path, capsys):
     assert set(tmp_path.rglob("*")) == before  # nothing written, no temporary file left
 
 
+@pytest.mark.slow
 def test_debug_shows_the_traceback_and_a_bug_is_named_as_one(tmp_path, capsys):
     argv = CORPUS["ASF bone length 0"][0](tmp_path)
     with pytest.raises(ValueError, match="length must be positive"):
