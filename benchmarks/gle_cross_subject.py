@@ -251,7 +251,8 @@ def main():
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
-                                    "manifold": config.manifold_of(m), "velocity": config.velocity_of(m)} for m in args.methods},
+                                    "manifold": config.manifold_of(m), "latent_dim": config.latent_dim_of(m),
+                                    "velocity": config.velocity_of(m)} for m in args.methods},
                 })
             write_json(rows, args.json)
             jax.clear_caches()  # every experiment compiles its own trackers (see real_motion.py)

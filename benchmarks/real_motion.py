@@ -76,8 +76,8 @@ def main():
     parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm"],
                         help="the manifold of every manifold tracker (own: each tracker's paper's)")
     parser.add_argument("--latent-dim", type=int, nargs="+", default=[None],
-                        help="latent dimensions of the manifolds (several: one table each; default: each kind's own, "
-                             "2 for the GP models and 3 for GLE)")
+                        help="latent dimensions of the manifolds (several: one table each; default: each tracker's own, "
+                             "MRPF 2, GPAPF and LatentPF 3; else 2 for the GP models and 3 for GLE)")
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
@@ -125,7 +125,8 @@ def main():
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
-                                    "velocity": config.velocity_of(m), "manifold": config.manifold_of(m)}
+                                    "velocity": config.velocity_of(m), "manifold": config.manifold_of(m),
+                                    "latent_dim": config.latent_dim_of(m)}
                                 for m in args.methods},
                 })
                 write_json(rows, args.json)

@@ -364,7 +364,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--batch-runs", action="store_true",
                             help="track each method's runs in one compiled call (vmapped over the runs' keys)")
     experiment.add_argument("--latent-dim", type=int,
-                            help="latent dimension of every manifold (default: 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
+                            help="latent dimension of every manifold (default: each tracker's own, MRPF 2, GPAPF and LatentPF 3; "
+                                 "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
     experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")

@@ -216,7 +216,7 @@ def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40,
     test = [load_sequence(os.path.join(out_dir, n.replace(" ", "_") + ".npz")) for n in names["test"]]
     config = ExperimentConfig(methods=tuple(methods or PAPER_TRACKERS), budget=budget, runs=runs, fit_steps=100, seed=seed,
                               velocity=velocity, manifold=manifold)
-    fitted = " and ".join(k.upper() for k in config.manifold_kinds) or "no manifold"
+    fitted = " and ".join(f"{k.upper()} ({q}-D)" for k, q in config.manifold_specs) or "no manifold"
     say(f"[2/4] fitting {fitted} and each tracker's dynamics; then {', '.join(config.methods)} with "
         f"{budget} likelihood evaluations per frame, {runs} runs each")
     results = run_experiment(train, validation, test, config, names=names, progress=verbose)

@@ -41,6 +41,13 @@ def test_bad_experiment_inputs(sequences):
     assert ExperimentConfig(methods=("sir", "apf")).manifold_kinds == ()
     assert [ExperimentConfig().manifold_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf", "glegbpf")] == [
         None, "gpdm", "gpdm", "gpdm", "gle"]
+    # Each tracker's manifold has its own latent dimension (MRPF 2 as in 000, GPAPF and LatentPF 3) unless one is
+    # named for all; one manifold is fitted per (kind, dimension).
+    assert ExperimentConfig().manifold_specs == (("gpdm", 2), ("gpdm", 3), ("gle", 3))
+    assert [ExperimentConfig().latent_dim_of(m) for m in ("sir", "mrpf", "gpapf", "latentpf", "glegbpf")] == [None, 2, 3, 3, 3]
+    assert ExperimentConfig(methods=("mrpf-alg1",)).manifold_specs == (("bc-gplvm", 2),)
+    assert ExperimentConfig(latent_dim=2).manifold_specs == (("gpdm", 2), ("gle", 2))
+    assert ExperimentConfig(methods=("gpapf", "sir")).manifold_specs == (("gpdm", 3),)
     # Each tracker carries its own velocity default (the one-layer manifold trackers) unless one is named for all.
     assert [ExperimentConfig().velocity_of(m) for m in ("sir", "apf", "mrpf", "gpapf", "latentpf")] == [False, False, True, False, True]
     assert all(ExperimentConfig(velocity=True).velocity_of(m) for m in ("sir", "gpapf"))
@@ -104,7 +111,8 @@ def test_experiment_end_to_end(sequences, tmp_path):
     assert list(tmp_path.glob("walk_*.gif"))
     # By default every manifold tracker runs on one GPDM, and the one-layer ones carry a velocity.
     assert results["manifold"]["class"] == "GPDM"
-    assert {kind: m["class"] for kind, m in results["manifolds"].items()} == {"gpdm": "GPDM", "gle": "SpectralEmbedding"}
+    assert {label: (m["class"], m["latent_dim"]) for label, m in results["manifolds"].items()} == {
+        "gpdm-2d": ("GPDM", 2), "gpdm-3d": ("GPDM", 3), "gle-3d": ("SpectralEmbedding", 3)}
     assert results["dynamics"]["gpapf"]["0.class"] == "GPDMLatentDynamics"
     assert set(results["velocity"]) == {"mrpf", "latentpf", "glegbpf"} and results["velocity"]["mrpf"]["entries"] == 6
 

@@ -9,6 +9,7 @@ import pytest
 from jaxtrack.body import forward_kinematics
 from jaxtrack.data import generate_motion
 from jaxtrack.manifold import (
+    INVERSE_METHODS,
     fit_model,
     fit_pca,
     gaussian_log_marginal,
@@ -217,10 +218,23 @@ def test_inverse_mapping(walk_jog):
     walk, _ = walk_jog
     Y = walk.pose[:60, 6:]
     gplvm, _ = fit_model(make_gplvm(Y, 2), max_steps=150)
-    # Training poses map back (near) to their own latent points, by the optimisation of 003 eq. 5.
-    Z = gplvm.encode(jnp.asarray(Y[::10]))
-    recon, _ = predict(gplvm, Z)
-    assert float(jnp.abs(recon - Y[::10]).max()) < 0.05
+    # Training poses map back (near) to their own latent points, by projection onto the mean
+    # surface (the default) and by the optimisation of 003 eq. 5.
+    for method in INVERSE_METHODS:
+        Z = gplvm.encode(jnp.asarray(Y[::10]), method=method)
+        recon, _ = predict(gplvm, Z)
+        assert float(jnp.abs(recon - Y[::10]).max()) < 0.05, method
+    # A pose the manifold was not trained on (every angle 0.15 rad off, like another subject):
+    # the projection decodes nearer to it than the nearest training pose's latent point, and
+    # much nearer than 003 eq. 5, whose optimum leaves the training points for large variance.
+    off = jnp.asarray(Y[5:60:6] + 0.15)
+    distance = lambda Z: np.linalg.norm(np.asarray(predict(gplvm, Z)[0]) - np.asarray(off), axis=1)  # noqa: E731
+    nearest = gplvm.latent[np.argmin(((np.asarray(off)[:, None] - Y[None]) ** 2).sum(-1), axis=1)]
+    projected, likelihood = distance(gplvm.encode(off)), distance(gplvm.encode(off, method="likelihood"))
+    assert np.all(projected <= distance(nearest) + 1e-6) and np.mean(projected) < np.mean(distance(nearest))
+    assert np.mean(projected) < np.mean(likelihood)
+    with pytest.raises(ValueError, match="encode method must be one of"):
+        gplvm.encode(off, method="nearest")
     bc = make_bc_gplvm(Y, 2)
     np.testing.assert_allclose(bc.encode(jnp.asarray(Y)), bc.latent, atol=1e-10)
     with pytest.raises(ValueError, match=r"poses must be \(m, 26\)"):

@@ -87,6 +87,8 @@ def test_builtin_trackers_are_registered():
         register_tracker("sir")
     with pytest.raises(ValueError, match="non-empty word"):
         TrackerRecipe("two words", "x", "x", fit_damped, build_damped)
+    with pytest.raises(ValueError, match="latent_dim must be a positive integer or None"):
+        TrackerRecipe("flat", "x", "x", fit_damped, build_damped, needs_manifold=True, latent_dim=0)
     with pytest.raises(ValueError, match="positive integer"):
         Budget(0)
 

@@ -20,8 +20,10 @@ class ExperimentConfig:
         batch_runs: track a tracker's runs on a test sequence in one compiled call (``jax.vmap``
             over the runs' keys; ``tracking.track_runs``): the same runs up to float rounding,
             fewer dispatches; frames/s is then the batch's frames over its time, compile included.
-        latent_dim: dimension of every manifold's latent space (None: each kind's own,
+        latent_dim: dimension of every manifold's latent space (None: each tracker's own,
+            ``TrackerRecipe.latent_dim``: MRPF 2, GPAPF and LatentPF 3; else the kind's,
             ``tracking.DEFAULT_LATENT_DIMS``: 2 for the GP models, 3 for the spectral ones).
+            One manifold is fitted per (kind, latent dimension) the trackers need.
         fit_steps: L-BFGS iterations for the manifold.
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
         frames: track only the first ``frames`` frames of each test sequence (None: all).
@@ -112,7 +114,22 @@ class ExperimentConfig:
         """Whether tracker ``method`` carries a Kalman-tracked velocity."""
         return get_tracker(method).velocity_for(self.velocity)
 
+    def latent_dim_of(self, method: str) -> int | None:
+        """The latent dimension of tracker ``method``'s manifold (None if it needs none)."""
+        kind = self.manifold_of(method)
+        return None if kind is None else get_tracker(method).latent_dim_for(kind, self.latent_dim)
+
+    def manifold_spec_of(self, method: str) -> tuple[str, int] | None:
+        """``(kind, latent_dim)`` of tracker ``method``'s manifold (None if it needs none)."""
+        kind = self.manifold_of(method)
+        return None if kind is None else (kind, self.latent_dim_of(method))
+
+    @property
+    def manifold_specs(self) -> tuple[tuple[str, int], ...]:
+        """The ``(kind, latent_dim)`` manifolds the experiment fits, in the order of the methods."""
+        return tuple(dict.fromkeys(s for s in map(self.manifold_spec_of, self.methods) if s is not None))
+
     @property
     def manifold_kinds(self) -> tuple[str, ...]:
         """The manifold kinds the experiment fits, in the order of the methods."""
-        return tuple(dict.fromkeys(k for k in map(self.manifold_of, self.methods) if k is not None))
+        return tuple(dict.fromkeys(kind for kind, _ in self.manifold_specs))

@@ -67,6 +67,11 @@ def dynamics_parameters(fitted) -> dict:
     return out
 
 
+def manifold_label(kind: str, latent_dim: int) -> str:
+    """The key of a fitted manifold in the results: ``"gpdm-2d"``, ``"gle-3d"``."""
+    return f"{kind}-{latent_dim}d"
+
+
 def shared_window(test, frames, resolution=None):
     """One likelihood window for all test sequences when their images agree in size, so each
     tracker compiles once (the window is a static shape); "auto" (per sequence) otherwise."""
@@ -109,7 +114,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         names: dict with lists "train", "validation", "test" of display names (file names).
 
     Returns:
-        a dict with "config", "manifolds" (per kind fitted: class, frames, objective, steps,
+        a dict with "config", "manifolds" (per manifold fitted, keyed ``manifold_label(kind,
+        latent_dim)``, e.g. "gpdm-2d": kind, class, frames, latent dimension, objective, steps,
         fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
         "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
         entries carry a velocity and its fitted spreads),
@@ -144,22 +150,22 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                "estimates": {}, "shape_calibration": {}}
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
-    for kind in config.manifold_kinds:
+    for kind, latent_dim in config.manifold_specs:
         start = time.perf_counter()
-        model, fit_info, starts = fit_manifold(train_poses, config.latent_dim, config.fit_steps, kind=kind, progress=progress)
+        model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress)
         fit_s = time.perf_counter() - start
         say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
-        results["manifolds"][kind] = {"class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
-                                      "objective": fit_info.objective,
-                                      "steps": fit_info.steps, "fit_s": fit_s}
-        motions[kind] = motion_data(train_poses, validation_poses, model, starts)
-    if config.manifold_kinds:
-        results["manifold"] = results["manifolds"][config.manifold_kinds[0]]
+        results["manifolds"][manifold_label(kind, latent_dim)] = {
+            "kind": kind, "class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
+            "objective": fit_info.objective, "steps": fit_info.steps, "fit_s": fit_s}
+        motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
+    if config.manifold_specs:
+        results["manifold"] = results["manifolds"][manifold_label(*config.manifold_specs[0])]
     fitted, run_roots = {}, {}
     for method in config.methods:
         fit_key, run_roots[method] = tracker_keys(config.seed, tracker_index(method))
-        fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_of(method)])
+        fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
         results["dynamics"][method] = dynamics_parameters(fitted[method])
 
     budget = config.tracking_budget

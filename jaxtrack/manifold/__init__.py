@@ -21,6 +21,7 @@ from ._eigenmaps import stylistic_neighbours as stylistic_neighbours
 from ._eigenmaps import temporal_graph as temporal_graph
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
+from ._inverse import INVERSE_METHODS as INVERSE_METHODS
 from ._kernels import LinearRBFKernel as LinearRBFKernel
 from ._kernels import RBFBiasKernel as RBFBiasKernel
 from ._kernels import gaussian_log_marginal as gaussian_log_marginal

@@ -16,6 +16,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
+from ._inverse import check_inverse_method
 
 
 class AbstractManifold(eqx.Module):
@@ -80,9 +81,10 @@ class AbstractManifold(eqx.Module):
         """The training data in pose units."""
         return self.mean + self.scale * self.data
 
-    def encode(self, poses: Float[Array, "m a"], *, max_steps: int | None = None) -> Float[Array, "m q"]:
+    def encode(self, poses: Float[Array, "m a"], *, max_steps: int | None = None, method: str = "projection") -> Float[Array, "m q"]:
         """Joint angles (pose units) -> latent points: the back-constraint where there is one,
-        otherwise 003 eq. 5 by BFGS (see ``ManifoldPrior.encode``).
+        otherwise by BFGS, projection onto the mean surface or 003 eq. 5's ``"likelihood"``
+        (see ``ManifoldPrior.encode``).
 
         Raises:
             ValueError: if ``poses`` is not (m, Da).
@@ -90,7 +92,8 @@ class AbstractManifold(eqx.Module):
         poses = jnp.asarray(poses, self.data.dtype)
         if poses.ndim != 2 or poses.shape[1] != self.data_dim:
             raise ValueError(f"poses must be (m, {self.data_dim}), got {poses.shape}")
-        return self.prior(0).encode(poses, max_steps=max_steps)
+        check_inverse_method(method)
+        return self.prior(0).encode(poses, max_steps=max_steps, method=method)
 
     def decode(self, latent: Float[Array, "m q"]) -> tuple[Float[Array, "m a"], Float[Array, " m"]]:
         """Predictive mean (pose units) and variance (standardised units, without the noise)

@@ -1,5 +1,6 @@
 """A fitted manifold as the trackers use it: the predictive map factorised once (000 eq. 25),
-the pose -> latent map (the back-constraint g of 000 eq. 22, or the optimisation of 003 eq. 5),
+the pose -> latent map (the back-constraint g of 000 eq. 22, or a projection onto the mean
+surface, or the optimisation of 003 eq. 5),
 and which entries of the pose vector it covers (the joint angles; the global position and
 orientation stay outside it, 001 sec. 5). Made by ``AbstractManifold.prior`` or
 ``make_manifold_prior``.
@@ -15,7 +16,7 @@ from .._tree import cast_floating
 from ._inverse import optimise_latent
 from ._predictor import AbstractPredictor, GPPredictor
 
-ENCODE_MAX_STEPS = 100  # BFGS iterations of 003 eq. 5 per pose (ample from the nearest training point)
+ENCODE_MAX_STEPS = 100  # BFGS iterations per pose (ample from the nearest training point)
 
 
 class ManifoldPrior(eqx.Module):
@@ -82,15 +83,17 @@ class ManifoldPrior(eqx.Module):
         mean, variance = self.latent_dynamics(latent)
         return mean, variance + self.latent_dynamics.kernel.noise
 
-    def encode(self, angles: Float[Array, "p a"], *, max_steps: int | None = None) -> Float[Array, "p q"]:
-        """Joint angles (pose units) -> latent points: the back-constraint, or 003 eq. 5 solved
-        by BFGS from the training latent point whose pose is nearest (``max_steps`` iterations,
-        default ``ENCODE_MAX_STEPS``)."""
+    def encode(self, angles: Float[Array, "p a"], *, max_steps: int | None = None, method: str = "projection") -> Float[Array, "p q"]:
+        """Joint angles (pose units) -> latent points: the back-constraint where there is one,
+        else by BFGS from the nearest training latent point (``max_steps`` iterations, default
+        ``ENCODE_MAX_STEPS``) either the projection onto the mean surface (``method=
+        "projection"``: the decoded pose is as near as the manifold allows) or 003 eq. 5
+        (``"likelihood"``); ``jaxtrack.manifold._inverse`` says why projection is the default."""
         standardised = (angles - self.predictor.mean) / self.predictor.scale
         if self.back_constraint is not None:
             return self.back_constraint(standardised)
         steps = ENCODE_MAX_STEPS if max_steps is None else max_steps
-        return optimise_latent(self.predictor, self.training_latent, self.training_data, standardised, max_steps=steps)
+        return optimise_latent(self.predictor, self.training_latent, self.training_data, standardised, max_steps=steps, method=method)
 
     def astype(self, dtype) -> ManifoldPrior:
         """The same prior with every floating array in ``dtype`` (trackers run in float32)."""

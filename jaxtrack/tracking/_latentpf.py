@@ -16,5 +16,9 @@ def build(dynamics, likelihood, budget):
     return SIR(dynamics, likelihood, budget.particles, estimator=StateMean())
 
 
+# 003 sec. 4 learns a 2-D latent space for 2-D tracking and cites a 3-D one as sufficient for
+# 3-D poses, which these are.
+LATENT_DIM = 3
+
 RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,
-                       needs_manifold=True, manifold="gpdm", velocity=True)
+                       needs_manifold=True, manifold="gpdm", velocity=True, latent_dim=LATENT_DIM)

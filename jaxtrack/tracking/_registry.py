@@ -23,8 +23,9 @@ GRADIENT_COST = 50.0
 GP_MANIFOLD_KINDS = ("bc-gplvm", "gpdm")  # 000's BC-GPLVM, 001's GPDM
 SPECTRAL_MANIFOLD_KINDS = ("gle", "tle", "le")  # 002's Laplacian Eigenmaps family, with RBF networks
 MANIFOLD_KINDS = GP_MANIFOLD_KINDS + SPECTRAL_MANIFOLD_KINDS  # what tracking.fit_manifold fits
-# Latent dimensions when the experiment names none: 2 for the GP models (000, 001), 3 for the
-# spectral ones (GLE in 2-D folds walks and jogs of several subjects onto each other).
+# Latent dimensions when neither the experiment nor the tracker names one: 2 for the GP models
+# (000), 3 for the spectral ones (GLE in 2-D folds walks and jogs of several subjects onto each
+# other). A tracker may name its own (``TrackerRecipe.latent_dim``: MRPF 2, GPAPF and LatentPF 3).
 DEFAULT_LATENT_DIMS = {"bc-gplvm": 2, "gpdm": 2, "gle": 3, "tle": 3, "le": 3}
 
 
@@ -121,6 +122,8 @@ class TrackerRecipe:
             baselines (README, "Dynamics that move").
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
+        latent_dim: the latent dimension of the tracker's manifold unless the experiment names
+            one for every tracker (None: the kind's default, ``DEFAULT_LATENT_DIMS``).
     """
 
     name: str
@@ -134,6 +137,7 @@ class TrackerRecipe:
     velocity: bool = False
     annealed: bool = False
     min_layers: int = 1
+    latent_dim: int | None = None
 
     def __post_init__(self):
         if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
@@ -143,6 +147,9 @@ class TrackerRecipe:
         if self.manifold not in self.manifolds or not set(self.manifolds) <= set(MANIFOLD_KINDS):
             raise ValueError(f"tracker {self.name!r}: manifold {self.manifold!r} and manifolds {self.manifolds} must be "
                              f"among {MANIFOLD_KINDS}, the first among the second")
+        if self.latent_dim is not None and (isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int)
+                                            or self.latent_dim < 1):
+            raise ValueError(f"tracker {self.name!r}: latent_dim must be a positive integer or None, got {self.latent_dim!r}")
 
     def manifold_for(self, requested: str | None) -> str:
         """The manifold kind this tracker runs on when the experiment asks for ``requested``
@@ -158,6 +165,13 @@ class TrackerRecipe:
         if requested not in self.manifolds:
             raise ValueError(f"{self.label} cannot run on a {requested} manifold (it runs on: {', '.join(self.manifolds)})")
         return requested
+
+    def latent_dim_for(self, kind: str, requested: int | None) -> int:
+        """The latent dimension of this tracker's ``kind`` manifold when the experiment asks for
+        ``requested`` (None: the tracker's own, else the kind's default)."""
+        if requested is not None:
+            return requested
+        return DEFAULT_LATENT_DIMS[kind] if self.latent_dim is None else self.latent_dim
 
     def velocity_for(self, requested: bool | None) -> bool:
         """Whether this tracker carries a velocity when the experiment asks for ``requested``
