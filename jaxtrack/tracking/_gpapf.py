@@ -26,8 +26,8 @@ def build(fitted, likelihood, budget):
 
 
 # 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here: on real motion rendered
-# with another body it was 0-4 mm better than 2 on every walk, jog and run (README, "Where the
-# manifold trackers start").
+# with another body it was better than 2 on all eight walk, jog and run rows, by 0.6-11 mm
+# (README, "Where the manifold trackers start").
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("gpapf", "GPAPF", "annealed filter over (global pose, latent point) with a final full-pose layer (001)",
