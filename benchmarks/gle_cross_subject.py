@@ -18,7 +18,7 @@ synthetic subjects S1 and S2) with the held-out synthetic subject S3 (other prop
 cadence, stride, arm swing, knee bend and lean) walking and jogging for 100 frames at 60 Hz.
 Every tracker runs at each ``--budgets`` value (likelihood evaluations per frame; the annealed
 ones in 5 layers: APF 5 x 100 at 500), ``--runs`` runs, with its own defaults (GLE-GbPF on a
-GLE, MRPF / GPAPF / LatentPF on a GPDM, 2-D).
+3-D GLE, MRPF on a 2-D GPDM, GPAPF and LatentPF on a 3-D one).
 
     taskset -c 0,1 python benchmarks/gle_cross_subject.py --cmu /tmp/real/cmu --bandai /tmp/real/bandai \\
         --runs 5 --budgets 500 1500 --json gle_cross_subject.json

@@ -54,8 +54,10 @@ for name in ("sir", "apf", "mrpf", "gpapf", "latentpf"):
                             velocity_from=validation_poses if recipe.velocity else None)
     _, plain = run_filter(tracker, key, scene.initial_pose, scene.observations)
     _, sharded = run_filter(tracker, key, scene.initial_pose, scene.observations, sharding=particle_sharding())
-    # float32 sums in another order: the same tracks to well under a millimetre's worth of pose
-    np.testing.assert_allclose(sharded.estimate, plain.estimate, atol=2e-3, err_msg=name)
+    # float32 sums in another order, which resampling can amplify: a cumulative weight that lands
+    # the other side of a uniform draw swaps an ancestor (measured: MRPF 3e-3 in 2 of 192 entries).
+    # The float64 test above checks the sharding itself to 1e-12.
+    np.testing.assert_allclose(sharded.estimate, plain.estimate, atol=5e-3, err_msg=name)
 print("ok")
 """
 
