@@ -287,3 +287,35 @@ def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey
     ]
     for dynamics in cases:
         check_refinement_keeps_transition(dynamics, jnp.asarray(walk[40]), getkey)
+
+
+def test_gpdm_trackers_start_at_the_projection_of_the_first_pose(gpdm_prior, walk):
+    """Every dynamics on a GPDM starts its particles at the latent point ``encode`` gives, the
+    projection onto the mean surface: for another subject's pose the decoded start is no farther
+    (in joint angles) than the nearest training pose's latent point. (That it is nearer than 003
+    eq. 5 on a fitted manifold: ``test_manifold.py::test_inverse_mapping``.)"""
+    other = np.asarray(generate_motion("walk", "S2", num_frames=30, fps=30.0, key=jax.random.key(8), dtype=jnp.float64).pose)
+    pose = jnp.asarray(other[12])
+    angles = pose[None, 6:]
+    projected = gpdm_prior.encode(angles)
+    decoded = lambda z: np.asarray(gpdm_prior.decode_mean(z))[0]  # noqa: E731
+    distance = lambda z: float(np.linalg.norm(decoded(z) - np.asarray(angles[0])))  # noqa: E731
+    training = np.asarray(gpdm_prior.training_poses())
+    nearest = gpdm_prior.training_latent[int(np.argmin(((training - np.asarray(angles)) ** 2).sum(1)))][None]
+    assert distance(projected) <= distance(nearest) + 1e-9
+    starts = {
+        "gpdm": fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
+        "latent random walk": fit_latent_dynamics(make_manifold_prior(make_bc_gplvm(walk[:45, 6:], 2), walk.shape[1]), walk[45:]),
+        "mrpf": fit_mrpf_transition(gpdm_prior, walk[45:], key=jax.random.key(0), proposal="product", latent_proposal="gpdm"),
+    }
+    for name, dynamics in starts.items():
+        state = dynamics.init(jax.random.key(1), pose, 3)
+        if name == "gpdm":
+            np.testing.assert_allclose(state[0, 6:], projected[0], atol=1e-9, err_msg=name)
+            np.testing.assert_allclose(dynamics.to_pose(state[:1])[0, 6:], decoded(projected), atol=1e-9, err_msg=name)
+        elif name == "mrpf":
+            np.testing.assert_allclose(state[0, pose.shape[0]:], projected[0], atol=1e-9, err_msg=name)
+        else:  # a BC-GPLVM encodes by its back-constraint, whatever the method
+            manifold = dynamics.manifold
+            np.testing.assert_allclose(state[0, 6:], manifold.encode(angles)[0], atol=1e-9, err_msg=name)
+            np.testing.assert_allclose(manifold.encode(angles, method="likelihood"), manifold.encode(angles), atol=1e-12)
