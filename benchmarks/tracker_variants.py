@@ -10,7 +10,10 @@ protocol (every option of that script applies):
 - ``latentpf-final``, ``latentpf-anneal``: the same two changes to LatentPF on the GPDM;
 - ``mrpf-final100``, ``latentpf-final100``: the tracker keeps 400 particles and carries them on;
   a final full-pose layer of 100 particles, drawn from them by weight, gives the estimate (the
-  split of GPAPF's budget, 4 x 100 + 100).
+  split of GPAPF's budget, 4 x 100 + 100);
+- ``mrpf-mixture``, ``gpapf-mixture``, ``latentpf-mixture``: the tracker with its GPDM latent
+  noise refitted on the validation motion (``latent_noise="validation"``: a scale mixture of
+  the GPDM's predictive sd, ``jaxtrack.dynamics._latent_noise``), everything else its own.
 
     taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
@@ -19,6 +22,7 @@ protocol (every option of that script applies):
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 
@@ -29,7 +33,7 @@ import jax.numpy as jnp
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
 from jaxtrack.likelihood import AbstractLikelihood
-from jaxtrack.tracking import TrackerRecipe, register_tracker
+from jaxtrack.tracking import TrackerRecipe, get_tracker, register_tracker
 
 FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
 
@@ -98,7 +102,30 @@ def _build_final100(fitted, likelihood, budget):
     return SIRWithFinalLayer(dynamics, likelihood, final, budget.evaluations - FINAL_PARTICLES, FINAL_PARTICLES)
 
 
+def _mixture(name, fit):
+    base = get_tracker(name)
+    return dataclasses.replace(base, name=f"{name}-mixture", label=f"{base.label}+mixture", manifolds=("gpdm",), fit=fit,
+                               description=f"{base.label} with its GPDM latent noise fitted on the validation motion")
+
+
+def _latent_mixture(key, motion):
+    del key
+    return fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts, latent_noise="validation")
+
+
+def _mrpf_mixture(key, motion):
+    return fit_mrpf_transition(motion.manifold, list(motion.validation), key=key, proposal="product", latent_proposal="gpdm",
+                               latent_noise="validation")
+
+
+def _gpapf_mixture(key, motion):
+    return _latent_mixture(key, motion), get_tracker("gpapf").fit(key, motion)[1]
+
+
 VARIANTS = [
+    _mixture("mrpf", _mrpf_mixture),
+    _mixture("gpapf", _gpapf_mixture),
+    _mixture("latentpf", _latent_mixture),
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
                   needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
     TrackerRecipe("mrpf-anneal", "MRPF+anneal3", "MRPF's transition as layer 0 of three annealing layers", _mrpf, _build_annealed(),

@@ -2,7 +2,8 @@
 function that fits it to motion data: the pose random walk of SIR and APF, second-order
 (constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
 Condensation, MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals), the
-GPDM's latent dynamics (001 eqs. 7-9), and a Kalman-tracked velocity that wraps any of them."""
+GPDM's latent dynamics (001 eqs. 7-9) with their noise optionally refitted on validation motion,
+and a Kalman-tracked velocity that wraps any of them."""
 
 from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
 from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
@@ -14,6 +15,11 @@ from ._gle_graph import fit_gle_graph_walk as fit_gle_graph_walk
 from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics
 from ._gpdm_latent import fit_gpdm_latent_dynamics as fit_gpdm_latent_dynamics
 from ._gpdm_latent import fit_latent_dynamics as fit_latent_dynamics
+from ._latent_noise import LATENT_NOISE_FITS as LATENT_NOISE_FITS
+from ._latent_noise import LatentNoiseMixture as LatentNoiseMixture
+from ._latent_noise import fit_latent_noise as fit_latent_noise
+from ._latent_noise import fit_scale_mixture as fit_scale_mixture
+from ._latent_noise import gpdm_noise as gpdm_noise
 from ._latent_random_walk import LatentRandomWalk as LatentRandomWalk
 from ._latent_random_walk import fit_latent_random_walk as fit_latent_random_walk
 from ._mrpf import MRPF_LATENT_PROPOSALS as MRPF_LATENT_PROPOSALS

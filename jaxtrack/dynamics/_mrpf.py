@@ -32,6 +32,7 @@ from jax.scipy.special import logsumexp
 from .._custom_types import Array, ArrayLike, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
 from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_density, gaussian_step, motion_sequences, rms_step
+from ._latent_noise import JUMP_STREAM, LatentNoiseMixture, check_latent_noise_fit, fit_latent_noise, gpdm_noise
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
 MRPF_PROPOSALS = ("product", "prior")
@@ -64,7 +65,8 @@ class ManifoldRegularisedTransition(AbstractDynamics):
       ``z_t ~ N(mu_X(z_{t-1}), sigma_X^2(z_{t-1}) I)`` (001 eqs. 7-9), so the latent point
       advances along the learned cycle and carries the gait phase the pose alone leaves
       ambiguous; ``s_xz`` is then unused (kept for the shape checks; the fit sets it to the
-      RMS predictive sd).
+      RMS predictive sd). The latent noise is ``sigma_X`` times ``latent_noise``: the GPDM's
+      own (default), or a scale mixture refitted on the validation motion (``_latent_noise``).
 
     The particle state is ``[x_t (D), z_t (q)]``: the pose and the latent draw it was made with
     (the next draw depends on ``x_t`` alone, eq. 27), so that the transition has a density,
@@ -73,6 +75,7 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     Attributes:
         manifold: a manifold with a back-constraint (BC-GPLVM).
         s_xx: (D,) eq. 29 scales; s_xz: (q,) eq. 27 scales; s_zx: (Da,) eq. 30 scales.
+        latent_noise: the GPDM proposal's noise relative to ``sigma_X`` (default the GPDM's own).
     """
 
     manifold: ManifoldPrior
@@ -81,6 +84,7 @@ class ManifoldRegularisedTransition(AbstractDynamics):
     s_zx: Float[Array, " a"]
     proposal: str = eqx.field(static=True, default="product")
     latent_proposal: str = eqx.field(static=True, default="back-constraint")
+    latent_noise: LatentNoiseMixture = eqx.field(default_factory=gpdm_noise)
 
     def __check_init__(self):
         if self.proposal not in MRPF_PROPOSALS:
@@ -115,9 +119,15 @@ class ManifoldRegularisedTransition(AbstractDynamics):
             return mean, jnp.sqrt(variance)[:, None]
         return self.manifold.encode(previous[:, self.manifold.global_dims : d]), self.s_xz
 
+    def _draw_latent(self, key, previous):
+        mean, sd = self._latent_prior(previous)
+        if self.latent_proposal == "gpdm":  # the fitted noise's factor per particle
+            sd = sd * self.latent_noise.factors(jax.random.fold_in(key, JUMP_STREAM), mean.shape[0], mean.dtype)[:, None]
+        return gaussian_step(key, mean, sd)
+
     def propose(self, key, previous):
         g = self.manifold.global_dims
-        latent = gaussian_step(jax.random.fold_in(key, LATENT_STREAM), *self._latent_prior(previous))
+        latent = self._draw_latent(jax.random.fold_in(key, LATENT_STREAM), previous)
         previous = self.to_pose(previous)
         manifold_mean = self.manifold.decode_mean(latent)
         if self.proposal == "prior":
@@ -144,9 +154,10 @@ class ManifoldRegularisedTransition(AbstractDynamics):
         g, d = self.manifold.global_dims, self.manifold.pose_dim
         before, pose, latent = previous[:, :d], states[:, :d], states[:, d:]
         latent_mean, latent_sd = self._latent_prior(previous)
-        log_latent = gaussian_log_density(latent, latent_mean, latent_sd)  # eq. 27, or the GPDM's
         if self.latent_proposal == "gpdm":  # a per-particle variance: its normaliser depends on the particle
-            log_latent = log_latent - self.manifold.latent_dim * jnp.log(latent_sd[:, 0])
+            log_latent = self.latent_noise.log_density(latent - latent_mean, latent_sd[:, 0])
+        else:
+            log_latent = gaussian_log_density(latent, latent_mean, latent_sd)  # eq. 27
         manifold_mean = self.manifold.decode_mean(latent)
         if self.proposal == "prior":  # eq. 29 times eq. 30, as Alg. 1 weighs it
             return log_latent + gaussian_log_density(pose, before, self.s_xx) + gaussian_log_density(pose[:, g:], manifold_mean, self.s_zx)
@@ -169,7 +180,7 @@ def check_latent_proposal(manifold: ManifoldPrior, latent_proposal: str) -> None
 
 def fit_mrpf_transition(
     manifold: ManifoldPrior, validation, *, key: PRNGKeyArray, proposal: str = "product",
-    latent_proposal: str = "back-constraint", samples: int = 64, floor: float = 1e-3,
+    latent_proposal: str = "back-constraint", samples: int = 64, floor: float = 1e-3, latent_noise: str = "gpdm",
 ) -> ManifoldRegularisedTransition:
     """Fit MRPF's scales on validation motion (module docstring).
 
@@ -183,6 +194,8 @@ def fit_mrpf_transition(
             dynamics; the validation latent draws start from each frame's encoded pose).
         samples: latent draws per validation frame.
         floor: smallest scale, so that no entry is deterministic.
+        latent_noise: the GPDM proposal's noise: "gpdm" (its own predictive variance) or
+            "validation" (the scale mixture fitted on the validation motion, ``_latent_noise``).
 
     Returns:
         the fitted ``ManifoldRegularisedTransition`` (in the manifold's dtype).
@@ -190,22 +203,32 @@ def fit_mrpf_transition(
     if proposal not in MRPF_PROPOSALS:
         raise ValueError(f"proposal must be one of {MRPF_PROPOSALS}, got {proposal!r}")
     check_latent_proposal(manifold, latent_proposal)
+    check_latent_noise_fit(latent_noise)
     sequences = motion_sequences(validation, manifold.pose_dim)
     g = manifold.global_dims
     dtype = manifold.training_latent.dtype
     s_xx = rms_step(sequences, floor)
     latent = [np.asarray(manifold.encode(jnp.asarray(s[:, g:], dtype)), np.float64) for s in sequences]
+    noise = gpdm_noise()
     if latent_proposal == "gpdm":
+        if latent_noise == "validation":
+            noise = fit_latent_noise(manifold, sequences)
         predicted = [manifold.predict_latent(jnp.asarray(z[:-1], dtype)) for z in latent]
         centres = [np.asarray(mean, np.float64) for mean, _ in predicted]
         spreads = [np.sqrt(np.asarray(variance, np.float64))[:, None] for _, variance in predicted]
         s_xz = np.full(manifold.latent_dim, np.sqrt(np.mean(np.square(np.concatenate(spreads)))))
     else:
         s_xz = rms_step(latent, floor)
-        centres, spreads = [z[:-1] for z in latent], [s_xz] * len(latent)
+        centres, spreads = [z[:-1] for z in latent], None
     residuals, manifold_means = [], []
-    for i, (s, z, centre, spread) in enumerate(zip(sequences, latent, centres, spreads)):
-        eps = np.asarray(jax.random.normal(jax.random.fold_in(key, i), (samples,) + z[:-1].shape), np.float64)
+    for i, (s, z, centre) in enumerate(zip(sequences, latent, centres)):
+        draw_key = jax.random.fold_in(key, i)
+        eps = np.asarray(jax.random.normal(draw_key, (samples,) + z[:-1].shape), np.float64)
+        if spreads is None:  # eq. 27
+            spread = s_xz
+        else:  # the GPDM's predictive draw, times the fitted noise's factor per draw
+            factors = noise.factors(jax.random.fold_in(draw_key, JUMP_STREAM), samples * (len(z) - 1), jnp.float32)
+            spread = spreads[i][None] * np.asarray(factors, np.float64).reshape(samples, len(z) - 1, 1)
         draws = (centre[None] + spread * eps).reshape(-1, z.shape[1])
         mean = np.asarray(manifold.decode_mean(jnp.asarray(draws, dtype)), np.float64).reshape(samples, len(s) - 1, -1)
         residuals.append((s[1:, g:][None] - mean).reshape(-1, mean.shape[-1]))
@@ -220,7 +243,7 @@ def fit_mrpf_transition(
         s_zx = s_zx_alone
     return ManifoldRegularisedTransition(
         manifold=manifold, s_xx=jnp.asarray(s_xx, dtype), s_xz=jnp.asarray(s_xz, dtype), s_zx=jnp.asarray(s_zx, dtype),
-        proposal=proposal, latent_proposal=latent_proposal,
+        proposal=proposal, latent_proposal=latent_proposal, latent_noise=noise,
     )
 
 
