@@ -202,6 +202,8 @@ def main():
     parser.add_argument("--train-frames", type=int, default=240,
                         help="first frames of each training take (60 Hz; 240: three to four walk cycles) (default: %(default)s)")
     parser.add_argument("--fit-steps", type=int, default=300)
+    parser.add_argument("--fit-optimiser", choices=["optax", "lbfgs"], default="optax",
+                        help="the manifold fit's L-BFGS (optax, the experiment's default: the README's tables)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--plot-latent", metavar="PNG", help="draw the LE and GLE latent spaces instead of tracking")
     parser.add_argument("--floors", action="store_true",
@@ -234,7 +236,8 @@ def main():
                     for i, (t, frames) in enumerate(tests)]
         for budget in args.budgets:
             config = ExperimentConfig(methods=tuple(args.methods), budget=budget, runs=args.runs, fit_steps=args.fit_steps,
-                                      seed=args.seed, velocity={"own": None, "on": True, "off": False}[args.velocity])
+                                      fit_optimiser=args.fit_optimiser, seed=args.seed,
+                                      velocity={"own": None, "on": True, "off": False}[args.velocity])
             start = time.perf_counter()
             results = run_experiment(train, validation, test, config, names={"test": test_names}, progress=False, animations=False)
             seconds = time.perf_counter() - start

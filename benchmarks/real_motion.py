@@ -79,6 +79,8 @@ def main():
                         help="latent dimensions of the manifolds (several: one table each; default: each tracker's own, "
                              "MRPF 2, GPAPF and LatentPF 3; else 2 for the GP models and 3 for GLE)")
     parser.add_argument("--fit-steps", type=int, default=300)
+    parser.add_argument("--fit-optimiser", choices=["optax", "lbfgs"], default="optax",
+                        help="the manifold fit's L-BFGS (optax, the experiment's default: the README's tables)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
     args = parser.parse_args()
@@ -106,6 +108,7 @@ def main():
             test = [other_body_scene(jax.random.fold_in(key, views), load_sequence(paths[test_take]), views, frames)]
             for velocity, manifold, latent_dim in itertools.product(velocities, args.manifold, args.latent_dim):
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
+                                          fit_optimiser=args.fit_optimiser,
                                           seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold,
                                           latent_dim=latent_dim)
                 start = time.perf_counter()

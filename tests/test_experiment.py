@@ -31,6 +31,8 @@ def test_bad_experiment_inputs(sequences):
     assert ExperimentConfig(methods=("mrpf",), manifold="gpdm").manifold_kinds == ("gpdm",)  # GPDM latent proposal
     with pytest.raises(ValueError, match="manifold must be one of"):
         ExperimentConfig(manifold="isomap")
+    with pytest.raises(ValueError, match="fit_optimiser must be one of"):
+        ExperimentConfig(fit_optimiser="adam")
     # Each manifold tracker runs on its paper's manifold unless one is named for all.
     assert ExperimentConfig().manifold_kinds == ("gpdm", "gle")
     assert ExperimentConfig(methods=("mrpf", "mrpf-alg1", "gpapf")).manifold_kinds == ("gpdm", "bc-gplvm")

@@ -1,5 +1,5 @@
-"""The jitted fit (one ``lax.while_loop`` of optax L-BFGS) and the derivative rules that make it
-fast: the Gaussian log-density's rule against autodiff through the Cholesky factorisation,
+"""The jitted fit (one ``lax.while_loop`` of L-BFGS: ours, one evaluation per iteration, and
+optax's) and the derivative rules that make it fast: the Gaussian log-density's rule against autodiff through the Cholesky factorisation,
 the jittered Cholesky's rule against JAX's, and the fit against reference optimisers."""
 
 import equinox as eqx
@@ -80,9 +80,9 @@ def _small_gplvm(frames=30):
 
 
 def test_jitted_fit_takes_the_same_steps_as_a_python_loop_of_optax_lbfgs():
-    """The fit before this one: optax L-BFGS steps driven from Python. Same start, same steps."""
+    """``optimiser="optax"`` against optax L-BFGS steps driven from Python. Same start, same steps."""
     model = _small_gplvm()
-    fitted, info = fit_model(model, max_steps=25, tolerance=0.0)
+    fitted, info = fit_model(model, max_steps=25, tolerance=0.0, optimiser="optax")
     params, static = eqx.partition(model, model.trainable())
     loss = lambda p: -eqx.combine(p, static).objective()  # noqa: E731
     optimiser = optax.lbfgs()
@@ -104,6 +104,66 @@ def test_jitted_fit_takes_the_same_steps_as_a_python_loop_of_optax_lbfgs():
     assert info.trace[-1] == pytest.approx(info.objective, rel=1e-12)
 
 
+def _reference_lbfgs(value_and_grad, x, steps, memory):
+    """L-BFGS written plainly in NumPy, one evaluation at a time in a Python loop: the weak
+    Wolfe conditions, from the unit quasi-Newton step back by safeguarded quadratic
+    interpolation, forward by doubling, then bisection; two-loop recursion."""
+    pairs, losses = [], []
+    loss, grad = value_and_grad(x)
+    direction, alpha = -grad, min(1.0, 1.0 / np.linalg.norm(grad))
+    low, high = 0.0, np.inf
+    while len(losses) < steps:
+        trial = x + alpha * direction
+        new_loss, new_grad = value_and_grad(trial)
+        slope = grad @ direction
+        armijo = np.isfinite(new_loss) and new_loss <= loss + 1e-4 * alpha * slope
+        if not (armijo and new_grad @ direction >= 0.9 * slope):
+            if armijo:
+                low = alpha
+            else:
+                high = alpha
+            quadratic = -slope * alpha**2 / (2 * (new_loss - loss - slope * alpha))
+            shrunk = quadratic if np.isfinite(new_loss) and 0.1 * alpha < quadratic < 0.5 * alpha else 0.5 * alpha
+            alpha = (0.5 * (low + high) if low > 0 else shrunk) if np.isfinite(high) else 2 * alpha
+            continue
+        s, y = trial - x, new_grad - grad
+        pairs = (pairs + [(s, y)])[-memory:]
+        x, loss, grad = trial, new_loss, new_grad
+        losses.append(loss)
+        low, high = 0.0, np.inf
+        q, alphas = grad.copy(), []
+        for s_i, y_i in reversed(pairs):
+            a = (s_i @ q) / (s_i @ y_i)
+            q -= a * y_i
+            alphas.append(a)
+        s_n, y_n = pairs[-1]
+        r = (s_n @ y_n) / (y_n @ y_n) * q
+        for (s_i, y_i), a in zip(pairs, reversed(alphas)):
+            r += (a - (y_i @ r) / (s_i @ y_i)) * s_i
+        direction, alpha = (-r, 1.0) if -r @ grad < 0 else (-grad, min(1.0, 1.0 / np.linalg.norm(grad)))
+    return x, np.array(losses)
+
+
+@pytest.mark.parametrize("memory", [3, 10])
+def test_jitted_lbfgs_takes_the_steps_of_a_plain_numpy_lbfgs(memory):
+    """The default optimiser (one evaluation per ``lax.while_loop`` iteration, its line search
+    a state of the loop) against the same algorithm written plainly: the same 25 steps. With 3
+    pairs the memory wraps round."""
+    model = _small_gplvm()
+    fitted, info = fit_model(model, max_steps=25, tolerance=0.0, memory=memory)
+    params, static = eqx.partition(model, model.trainable())
+    flat, unravel = ravel_pytree(params)
+    jitted = jax.jit(jax.value_and_grad(lambda x: -eqx.combine(unravel(x), static).objective()))
+    x, losses = _reference_lbfgs(lambda x: tuple(np.asarray(v, np.float64) for v in jitted(x)), np.asarray(flat), 25, memory)
+    assert info.steps == 25 and info.evaluations >= 26
+    np.testing.assert_allclose(-info.trace, losses, rtol=1e-9)
+    np.testing.assert_allclose(fitted.latent, unravel(jnp.asarray(x)).latent, rtol=1e-6, atol=1e-8)
+    with pytest.raises(ValueError, match="optimiser must be one of"):
+        fit_model(model, optimiser="adam")
+    with pytest.raises(ValueError, match="memory must be a positive integer"):
+        fit_model(model, memory=0)
+
+
 class _KernelOnly(eqx.Module):
     """A GPLVM whose latent points stay where PCA put them: kernel hyperparameters by maximum
     likelihood, a small problem with a well-defined optimum (the full GP-LVM objective has
@@ -119,11 +179,13 @@ class _KernelOnly(eqx.Module):
         return eqx.tree_at(lambda m: m.model.kernel, spec, jax.tree.map(lambda _: True, self.model.kernel))
 
 
-def test_converged_fit_reaches_the_optimum_scipy_reaches():
-    """Run to convergence from the same start, the jitted fit and SciPy's L-BFGS-B on the same
-    objective end at the same optimum (objective and identifiable hyperparameters)."""
+@pytest.mark.parametrize("optimiser", ["lbfgs", "optax"])
+def test_converged_fit_reaches_the_optimum_scipy_reaches(optimiser):
+    """Run to convergence from the same start, the jitted fit (either optimiser) and SciPy's
+    L-BFGS-B on the same objective end at the same optimum (objective and identifiable
+    hyperparameters)."""
     problem = _KernelOnly(_small_gplvm(40))
-    fitted, info = fit_model(problem, max_steps=500, tolerance=1e-13)
+    fitted, info = fit_model(problem, max_steps=500, tolerance=1e-13, optimiser=optimiser)
     params, static = eqx.partition(problem, problem.trainable())
     flat, unravel = ravel_pytree(params)
     value_and_grad = jax.jit(jax.value_and_grad(lambda x: -eqx.combine(unravel(x), static).objective()))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..errors import ConfigurationError
+from ..manifold import OPTIMISERS
 from ..tracking import GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
 
 
@@ -25,6 +26,10 @@ class ExperimentConfig:
             ``tracking.DEFAULT_LATENT_DIMS``: 2 for the GP models, 3 for the spectral ones).
             One manifold is fitted per (kind, latent dimension) the trackers need.
         fit_steps: L-BFGS iterations for the manifold.
+        fit_optimiser: the manifold fit's L-BFGS (``jaxtrack.manifold.fit_model``): "optax"
+            (default: optax's, zoom line search; every tracking table of the README was measured
+            with it) or "lbfgs" (one evaluation per loop iteration: compiles in about half the
+            time; the default once those tables are measured again with it)
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
         frames: track only the first ``frames`` frames of each test sequence (None: all).
         seed: base PRNG seed; tracker ``i`` of the registry runs with keys folded from
@@ -57,6 +62,7 @@ class ExperimentConfig:
     batch_runs: bool = False
     latent_dim: int | None = None
     fit_steps: int = 300
+    fit_optimiser: str = "optax"
     likelihood_scale: float = 100.0
     frames: int | None = None
     seed: int = 0
@@ -80,6 +86,8 @@ class ExperimentConfig:
             raise ConfigurationError(f"frames must be positive, got {self.frames}")
         if (self.latent_dim is not None and self.latent_dim < 1) or self.fit_steps < 1:
             raise ConfigurationError("latent_dim and fit_steps must be positive")
+        if self.fit_optimiser not in OPTIMISERS:
+            raise ConfigurationError(f"fit_optimiser must be one of {OPTIMISERS}, got {self.fit_optimiser!r}")
         if not self.likelihood_scale > 0:
             raise ConfigurationError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):

@@ -152,7 +152,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     motions = {None: motion_data(train_poses, validation_poses)}
     for kind, latent_dim in config.manifold_specs:
         start = time.perf_counter()
-        model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress)
+        model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress,
+                                               optimiser=config.fit_optimiser)
         fit_s = time.perf_counter() - start
         say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")

@@ -19,6 +19,7 @@ from ._eigenmaps import laplacian_embedding as laplacian_embedding
 from ._eigenmaps import stylistic_graph as stylistic_graph
 from ._eigenmaps import stylistic_neighbours as stylistic_neighbours
 from ._eigenmaps import temporal_graph as temporal_graph
+from ._fit import OPTIMISERS as OPTIMISERS
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
 from ._inverse import INVERSE_METHODS as INVERSE_METHODS
@@ -27,6 +28,8 @@ from ._kernels import RBFBiasKernel as RBFBiasKernel
 from ._kernels import gaussian_log_marginal as gaussian_log_marginal
 from ._kernels import rbf_bias_kernel as rbf_bias_kernel
 from ._kernels import safe_cholesky as safe_cholesky
+from ._lbfgs import LBFGS_MEMORY as LBFGS_MEMORY
+from ._lbfgs import lbfgs_minimise as lbfgs_minimise
 from ._models import BCGPLVM as BCGPLVM
 from ._models import GPDM as GPDM
 from ._models import GPLVM as GPLVM

@@ -72,11 +72,12 @@ def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
 
 
 def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: int, *, kind: str = "bc-gplvm",
-                 progress: bool = False):
+                 progress: bool = False, optimiser: str = "optax"):
     """A manifold of the joint angles of the training pose sequences, in float64: a BC-GPLVM
     (000 eqs. 21-22), a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows), or an LE,
     temporal LE or GLE embedding with its RBF networks (002; closed form, ``steps`` unused).
-    ``latent_dim`` None: the kind's default (``DEFAULT_LATENT_DIMS``).
+    ``latent_dim`` None: the kind's default (``DEFAULT_LATENT_DIMS``); ``optimiser``: the GP
+    models' L-BFGS (``manifold.fit_model``; "optax", the experiment's default, or "lbfgs").
 
     Returns:
         ``(model, FitInfo, training_starts)``.
@@ -91,7 +92,7 @@ def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: i
             model = fit_spectral(angles, kind, latent_dim=latent_dim)
         else:
             model = make_bc_gplvm(np.concatenate(angles), latent_dim) if kind == "bc-gplvm" else make_gpdm(angles, latent_dim)
-        fitted, info = model.fit(max_steps=steps, progress=progress)
+        fitted, info = model.fit(max_steps=steps, progress=progress, optimiser=optimiser)
     return fitted, info, starts
 
 
