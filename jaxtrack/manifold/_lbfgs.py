@@ -108,6 +108,7 @@ def lbfgs_minimise(
         tolerance: stop when ``check_every`` accepted steps improve the loss by less than this
             (relative); 0 never stops for it (traced).
         target: stop once the loss is at or below this (traced; -inf: never).
+        check_every: accepted steps between convergence checks and reports (traced).
         capacity: length of the trace buffer (static, >= max_steps).
         report: ``(steps, loss) -> None`` called (inside jit) at every check and at the end.
 
