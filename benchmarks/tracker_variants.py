@@ -122,22 +122,28 @@ def _gpapf_mixture(key, motion):
     return _latent_mixture(key, motion), get_tracker("gpapf").fit(key, motion)[1]
 
 
+MRPF_DIM = get_tracker("mrpf").latent_dim  # each variant on its base tracker's latent dimension
+LATENT_DIM = get_tracker("latentpf").latent_dim
+
 VARIANTS = [
     _mixture("mrpf", _mrpf_mixture),
     _mixture("gpapf", _gpapf_mixture),
     _mixture("latentpf", _latent_mixture),
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
-                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True, latent_dim=MRPF_DIM),
     TrackerRecipe("mrpf-anneal", "MRPF+anneal3", "MRPF's transition as layer 0 of three annealing layers", _mrpf, _build_annealed(),
-                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True, latent_dim=MRPF_DIM),
     TrackerRecipe("latentpf-final", "LatentPF+final", "LatentPF, then a final full-pose layer for the estimate", _with_final(_latent),
-                  _build_final, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  _build_final, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True, latent_dim=LATENT_DIM),
     TrackerRecipe("latentpf-anneal", "LatentPF+anneal3", "LatentPF's GPDM step as layer 0 of three annealing layers", _latent,
-                  _build_annealed(ProjectedMean), needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  _build_annealed(ProjectedMean), needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True,
+                  latent_dim=LATENT_DIM),
     TrackerRecipe("mrpf-final100", "MRPF+final100", "MRPF on 400 particles, a 100-particle final full-pose layer for the estimate",
-                  _with_final(_mrpf), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  _with_final(_mrpf), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True,
+                  latent_dim=MRPF_DIM),
     TrackerRecipe("latentpf-final100", "LatentPF+final100", "LatentPF on 400 particles, a 100-particle final layer for the estimate",
-                  _with_final(_latent), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True),
+                  _with_final(_latent), _build_final100, needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True,
+                  latent_dim=LATENT_DIM),
 ]
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ import scipy.optimize
 from jax.flatten_util import ravel_pytree
 
 from jaxtrack.data import generate_motion
-from jaxtrack.manifold import fit_model, gaussian_log_marginal, make_gplvm, safe_cholesky
+from jaxtrack.manifold import cholesky_inverse, fit_model, gaussian_log_marginal, make_gplvm, safe_cholesky
 
 
 def _plain_log_marginal(K, Y, columns):
@@ -52,6 +52,26 @@ def test_log_marginal_rule_equals_autodiff_through_the_cholesky_in_both_modes(ge
         # second order too (the rule is written in differentiable JAX operations)
         hvps = [jax.grad(lambda K, f=f: jax.jvp(lambda K: f(K, Y), (K,), (dK,))[1])(K) for f in (rule, plain)]
         np.testing.assert_allclose(hvps[0], hvps[1], rtol=1e-8, atol=1e-10)
+
+
+@pytest.mark.parametrize(("n", "block"), [(6, 128), (37, 8), (300, 128), (301, 64)])
+def test_cholesky_inverse_equals_the_inverse_at_every_depth_of_its_recursion(getkey, n, block):
+    K = _spd(getkey(), n)
+    inverse = cholesky_inverse(jnp.linalg.cholesky(K), block=block)
+    reference = np.linalg.inv(np.asarray(K))
+    np.testing.assert_allclose(inverse, reference, rtol=1e-9, atol=1e-9 * np.abs(reference).max())
+    np.testing.assert_allclose(inverse, inverse.T, rtol=0, atol=1e-12 * np.abs(reference).max())
+    np.testing.assert_allclose(jax.jit(cholesky_inverse, static_argnames="block")(jnp.linalg.cholesky(K), block=block), inverse,
+                               rtol=1e-12, atol=1e-12 * np.abs(reference).max())
+
+
+def test_log_marginal_rule_holds_where_the_inverse_recurses(getkey):
+    n, d = 300, 3  # beyond one block of ``cholesky_inverse``
+    K, Y = _spd(getkey(), n), jax.random.normal(getkey(), (n, d), jnp.float64)
+    rule = jax.grad(gaussian_log_marginal, argnums=(0, 1))(K, Y)
+    plain = jax.grad(lambda K, Y: _plain_log_marginal(K, Y, jnp.ones(d)), argnums=(0, 1))(K, Y)
+    for a, b in zip(rule, plain):
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10 * np.abs(np.asarray(b)).max())
 
 
 def test_safe_cholesky_differentiates_like_jax_cholesky_and_survives_a_singular_matrix(getkey):

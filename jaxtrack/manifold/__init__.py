@@ -25,6 +25,7 @@ from ._fit import fit_model as fit_model
 from ._inverse import INVERSE_METHODS as INVERSE_METHODS
 from ._kernels import LinearRBFKernel as LinearRBFKernel
 from ._kernels import RBFBiasKernel as RBFBiasKernel
+from ._kernels import cholesky_inverse as cholesky_inverse
 from ._kernels import gaussian_log_marginal as gaussian_log_marginal
 from ._kernels import rbf_bias_kernel as rbf_bias_kernel
 from ._kernels import safe_cholesky as safe_cholesky
