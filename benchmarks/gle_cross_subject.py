@@ -25,7 +25,7 @@ ones in 5 layers: APF 5 x 100 at 500), ``--runs`` runs, with its own defaults (G
 
 ``--plot-latent PATH`` draws the LE and GLE embeddings of the combo training sets coloured by
 take and by gait phase instead (no tracking); ``--floors`` measures how close each protocol's
-GLE can get to its test poses.
+training poses and GLE can get to its test poses (``manifold_floors``).
 """
 
 from __future__ import annotations
@@ -148,16 +148,32 @@ def plot_latent_spaces(folders, parser, path, train_frames):
     print(f"wrote {path}")
 
 
+JOINT_GROUPS = {
+    "arms": ("lshoulder", "lelbow", "lwrist", "rshoulder", "relbow", "rwrist"),
+    "legs": ("lhip", "lknee", "lankle", "rhip", "rknee", "rankle"),
+    "torso": ("pelvis", "thorax", "head"),
+}
+CONVENTION_ANGLES = ("lclavicle_elev", "lshoulder_abd", "lhip_twist", "rhip_twist")  # where the datasets differ most
+
+
 def manifold_floors(folders, parser, train_frames):
-    """How close each protocol's GLE can get to its test poses, with the true root: the mean
-    joint error (mm) of the training pose nearest in joint angles (radians), and of
-    encode -> decode through the inverse and forward RBF networks."""
+    """How close each protocol's training poses, and its GLE, can get to its test poses, with
+    the true root (mm; nearest in joint angles, radians):
+
+    - ``nearest_training_pose_mm`` (and ``..._by_group``: arms, legs, torso): the training pose
+      nearest to each test pose;
+    - ``encode_decode_mm``: encode -> decode through the GLE's inverse and forward RBF networks;
+    - ``legs_nearest_by_legs_mm``: the leg joints' error when the nearest pose is chosen by the
+      leg angles alone (so the arms' conventions cannot pick it);
+    - ``mean_centred_nearest_mm``: the nearest pose after shifting the training angles by the
+      difference of the test take's and the training set's mean angles, an oracle for any
+      per-dataset normalisation of the angles' conventions (it uses the test take's own mean);
+    - ``mean_difference_rad``: that difference for ``CONVENTION_ANGLES``."""
     import jax
     import jax.numpy as jnp
     import numpy as np
 
-    from jaxtrack.body import forward_kinematics, joint_angles
-    from jaxtrack.evaluation import mean_joint_error_mm
+    from jaxtrack.body import HUMANEVA_JOINTS, forward_kinematics, joint_angles
     from jaxtrack.manifold import fit_spectral
     from jaxtrack.tracking import sequence_poses
 
@@ -172,17 +188,31 @@ def manifold_floors(folders, parser, train_frames):
             sequence = load(folders, take, parser)
             poses = sequence_poses(sequence, take[1], key=key)[:frames]
             skeleton = sequence.body().skeleton
-            truth = forward_kinematics(skeleton, jnp.asarray(poses))
+            truth = np.asarray(forward_kinematics(skeleton, jnp.asarray(poses)))
+            layout = skeleton.pose_layout[6:]
 
-            def error(angles_, poses=poses, skeleton=skeleton, truth=truth):
-                estimate = forward_kinematics(skeleton, jnp.asarray(np.concatenate([poses[:, :6], angles_], axis=1)))
-                return float(mean_joint_error_mm(estimate, truth))
+            def per_joint(angles_, poses=poses, skeleton=skeleton, truth=truth):
+                estimate = np.asarray(forward_kinematics(skeleton, jnp.asarray(np.concatenate([poses[:, :6], angles_], axis=1))))
+                return 1000.0 * np.linalg.norm(estimate - truth, axis=-1).mean(axis=0)  # (15,) mm
+
+            def group(errors, joints):
+                return float(np.mean([errors[HUMANEVA_JOINTS.index(j)] for j in joints]))
 
             test = joint_angles(poses)
-            nearest = np.argmin(((test[:, None] - training[None]) ** 2).sum(-1), axis=1)
+
+            def nearest(candidates, columns=slice(None), test=test):
+                return candidates[np.argmin(((test[:, None, columns] - candidates[None, :, columns]) ** 2).sum(-1), axis=1)]
+
+            plain = per_joint(nearest(training))
+            legs = [i for i, entry in enumerate(layout) if entry.startswith(("lhip", "rhip", "lknee", "rknee"))]
+            shift = test.mean(axis=0) - training.mean(axis=0)
             row = {"protocol": name, "test": f"{take[0]}-{take[1]}",
-                   "nearest_training_pose_mm": error(training[nearest]),
-                   "encode_decode_mm": error(np.asarray(model.decode(model.encode(jnp.asarray(test)))[0]))}
+                   "nearest_training_pose_mm": float(plain.mean()),
+                   "nearest_training_pose_mm_by_group": {g: group(plain, joints) for g, joints in JOINT_GROUPS.items()},
+                   "encode_decode_mm": float(per_joint(np.asarray(model.decode(model.encode(jnp.asarray(test)))[0])).mean()),
+                   "legs_nearest_by_legs_mm": group(per_joint(nearest(training, legs)), JOINT_GROUPS["legs"]),
+                   "mean_centred_nearest_mm": float(per_joint(nearest(training + shift)).mean()),
+                   "mean_difference_rad": {a: float(shift[layout.index(a)]) for a in CONVENTION_ANGLES}}
             print(row, flush=True)
             rows.append(row)
     return rows
