@@ -254,6 +254,9 @@ def fit_plain(model, evaluations, repeats=3):
 # ------------------------------------------------------------------------------------ jaxtrack
 
 
+MEMORY = {}  # fit_model's ``memory`` for the default optimiser (``--memory``; empty: its default)
+
+
 def fit_jaxtrack(model, steps, target=None, optimiser="lbfgs"):
     """A cold fit (JAX's caches cleared first): wall seconds, compile included."""
     import jax
@@ -262,7 +265,8 @@ def fit_jaxtrack(model, steps, target=None, optimiser="lbfgs"):
 
     jax.clear_caches()
     start = time.perf_counter()
-    fitted, info = fit_model(model, max_steps=steps, tolerance=0.0, target=target, optimiser=optimiser)
+    options = MEMORY if optimiser == "lbfgs" else {}
+    fitted, info = fit_model(model, max_steps=steps, tolerance=0.0, target=target, optimiser=optimiser, **options)
     return time.perf_counter() - start, fitted, info
 
 
@@ -273,7 +277,7 @@ def compile_seconds(model, steps=10, optimiser="lbfgs"):
 
     cold, _, _ = fit_jaxtrack(model, steps, optimiser=optimiser)
     start = time.perf_counter()
-    fit_model(model, max_steps=steps, tolerance=0.0, optimiser=optimiser)
+    fit_model(model, max_steps=steps, tolerance=0.0, optimiser=optimiser, **(MEMORY if optimiser == "lbfgs" else {}))
     return max(cold - (time.perf_counter() - start), 0.0)
 
 
@@ -337,12 +341,17 @@ def main():
     parser.add_argument("--evaluations", type=int, default=1000, help="the reference's objective evaluations (exact models)")
     parser.add_argument("--sparse-evaluations", type=int, default=300, help="the same for the sparse GPLVM")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--memory", type=int, help="curvature pairs of jaxtrack's own L-BFGS (default: fit_model's, 100)")
     parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
     args = parser.parse_args()
+    if args.memory is not None:
+        MEMORY["memory"] = args.memory
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, str(args.threads))
     os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
     import jax
+
+    from jaxtrack.manifold import LBFGS_MEMORY
 
     jax.config.update("jax_enable_x64", True)
     try:
@@ -366,6 +375,7 @@ def main():
             reference = fit_gpy(GPy, model, name, evaluations, args.threads)
         row = compare(model, name, reference)
         row["matmul_gflops"] = rate
+        row["jaxtrack_memory"] = MEMORY.get("memory", LBFGS_MEMORY)
         if name != "sparse-gplvm":  # an exact evaluation needs at least N^3 flops of dense linear algebra
             row["jaxtrack_gflops"] = row["N"] ** 3 / row["jaxtrack_s_per_evaluation"] / 1e9
             row["jaxtrack_fraction_of_matmul_rate"] = row["jaxtrack_gflops"] / rate
