@@ -31,6 +31,7 @@ training poses and GLE can get to its test poses (``manifold_floors``).
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import time
 
@@ -229,6 +230,9 @@ def main():
     parser.add_argument("--views", type=int, default=3)
     parser.add_argument("--velocity", choices=["own", "on", "off"], default="own",
                         help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
+    parser.add_argument("--residual", nargs="+", default=["own"],
+                        help="scales of the off-manifold pose residual of LatentPF and GLE-GbPF (several: one table each; "
+                             "0: none; own: each tracker's default)")
     parser.add_argument("--train-frames", type=int, default=240,
                         help="first frames of each training take (60 Hz; 240: three to four walk cycles) (default: %(default)s)")
     parser.add_argument("--fit-steps", type=int, default=300)
@@ -264,14 +268,15 @@ def main():
             test_names = [f"{t[0]}-{t[1]}" for t, _ in tests]
             test = [other_body_scene(jax.random.fold_in(key, i), load(folders, t, parser), args.views, frames)
                     for i, (t, frames) in enumerate(tests)]
-        for budget in args.budgets:
+        for budget, residual in itertools.product(args.budgets, [None if r == "own" else float(r) for r in args.residual]):
             config = ExperimentConfig(methods=tuple(args.methods), budget=budget, runs=args.runs, fit_steps=args.fit_steps,
                                       fit_optimiser=args.fit_optimiser, seed=args.seed,
-                                      velocity={"own": None, "on": True, "off": False}[args.velocity])
+                                      velocity={"own": None, "on": True, "off": False}[args.velocity], residual=residual)
             start = time.perf_counter()
             results = run_experiment(train, validation, test, config, names={"test": test_names}, progress=False, animations=False)
             seconds = time.perf_counter() - start
-            print(f"\n{name}, budget {budget}, {args.views} views, other body ({seconds:.0f} s)\n")
+            print(f"\n{name}, budget {budget}, residual {residual if residual is not None else 'own'}, {args.views} views, "
+                  f"other body ({seconds:.0f} s)\n")
             print(results_table(results), flush=True)
             for test_name, scene in zip(test_names, test):
                 per_method = results["sequences"][test_name]
@@ -285,7 +290,7 @@ def main():
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "manifold": config.manifold_of(m), "latent_dim": config.latent_dim_of(m),
-                                    "velocity": config.velocity_of(m)} for m in args.methods},
+                                    "velocity": config.velocity_of(m), "residual": config.residual_of(m)} for m in args.methods},
                 })
             write_json(rows, args.json)
             jax.clear_caches()  # every experiment compiles its own trackers (see real_motion.py)

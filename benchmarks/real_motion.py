@@ -78,6 +78,9 @@ def main():
     parser.add_argument("--latent-dim", type=int, nargs="+", default=[None],
                         help="latent dimensions of the manifolds (several: one table each; default: each tracker's own, "
                              "MRPF 2, GPAPF and LatentPF 3; else 2 for the GP models and 3 for GLE)")
+    parser.add_argument("--residual", nargs="+", default=["own"],
+                        help="scales of the off-manifold pose residual of LatentPF and GLE-GbPF (several: one table each; "
+                             "0: none; own: each tracker's default)")
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--fit-optimiser", choices=["optax", "lbfgs"], default="optax",
                         help="the manifold fit's L-BFGS (optax, the experiment's default: the README's tables)")
@@ -106,21 +109,24 @@ def main():
         validation = [load_sequence(paths[t]) for t in validation_takes]
         for views in args.views:
             test = [other_body_scene(jax.random.fold_in(key, views), load_sequence(paths[test_take]), views, frames)]
-            for velocity, manifold, latent_dim in itertools.product(velocities, args.manifold, args.latent_dim):
+            residuals = [None if r == "own" else float(r) for r in args.residual]
+            for velocity, manifold, latent_dim, residual in itertools.product(velocities, args.manifold, args.latent_dim, residuals):
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
                                           fit_optimiser=args.fit_optimiser,
                                           seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold,
-                                          latent_dim=latent_dim)
+                                          latent_dim=latent_dim, residual=residual)
                 start = time.perf_counter()
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
-                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'} "
+                print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'}, "
+                      f"residual {residual if residual is not None else 'own'} "
                       f"({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
                     "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "latent_dim": latent_dim,
+                    "residual": residual,
                     "frames": test[0].num_frames,
                     "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
@@ -129,7 +135,7 @@ def main():
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "velocity": config.velocity_of(m), "manifold": config.manifold_of(m),
-                                    "latent_dim": config.latent_dim_of(m)}
+                                    "latent_dim": config.latent_dim_of(m), "residual": config.residual_of(m)}
                                 for m in args.methods},
                 })
                 write_json(rows, args.json)

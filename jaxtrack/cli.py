@@ -167,6 +167,7 @@ def _experiment(args) -> int:
         likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
         calibrate_shape=args.calibrate_shape, resolution=args.resolution, pixel_samples=args.pixel_samples,
         refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
+        residual=args.residual,
     )
     from .io import check_folder
 
@@ -212,7 +213,7 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples,
+        refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples, residual=args.residual,
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
@@ -242,6 +243,15 @@ def _resolution(text: str) -> tuple[int, int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 80x60, got {text!r}") from None
     return width, height
+
+
+def _residual_help(whose: str) -> str:
+    from .tracking import available_trackers, get_tracker
+
+    owners = [n for n in available_trackers() if get_tracker(n).residual is not None]
+    defaults = ", ".join(f"{n} {get_tracker(n).residual:g}" for n in owners)
+    return (f"give {whose} whose pose is decoded from a latent point ({', '.join(owners)}) an off-manifold pose residual "
+            f"that walks with SCALE times the pose random walk's steps (0: none) (default: each tracker's own: {defaults})")
 
 
 def _velocity_defaults() -> str:
@@ -394,6 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help="the manifold of every manifold tracker of its family (GP: bc-gplvm, gpdm; Laplacian "
                                  "Eigenmaps: gle, tle, le; the other family keeps its own) (default: each tracker's own: "
                                  f"{_manifold_defaults()})")
+    experiment.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("every tracker"))
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
@@ -420,6 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--velocity", action=argparse.BooleanOptionalAction,
                        help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion, or not "
                             f"(default: the tracker's own: {_velocity_defaults()})")
+    track.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("the tracker"))
     track.add_argument("--max-degenerate", type=float, default=0.0,
                        help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")

@@ -194,6 +194,22 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
     assert not (tmp_path / "cut.npz").exists()
 
 
+def test_track_with_a_pose_residual(tmp_path, capsys):
+    """``track --residual SCALE`` runs a latent tracker with the residual; a tracker whose state
+    is the pose refuses it with a clear message."""
+    seq = small_scene(num_frames=4)[2]
+    test = tmp_path / "walk.npz"
+    save_sequence(test, seq)
+    model = tmp_path / "gle.eqx"
+    assert main(["fit", str(test), "--model", "tle", "--latent-dim", "2", "--out", str(model)]) == 0
+    args = ["track", str(test), "--model", str(model), "--validation", str(test), "--budget", "16"]
+    assert main([*args, "--method", "glegbpf", "--residual", "1", "--out", str(tmp_path / "est")]) == 0
+    assert np.all(np.isfinite(load_sequence(tmp_path / "est.npz").pose))
+    capsys.readouterr()
+    assert main([*args, "--method", "sir", "--residual", "1", "--out", str(tmp_path / "sir")]) == 2
+    assert "SIR takes no pose residual" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_a_second_call_loads_its_compiled_trackers_from_the_cache(tmp_path):
     """The command line keeps compiled programs in JAXTRACK_CACHE_DIR: the first ``track`` fills

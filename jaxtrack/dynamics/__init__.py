@@ -3,7 +3,7 @@ function that fits it to motion data: the pose random walk of SIR and APF, secon
 (constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
 Condensation, MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals), the
 GPDM's latent dynamics (001 eqs. 7-9) with their noise optionally refitted on validation motion,
-and a Kalman-tracked velocity that wraps any of them."""
+and two wrappers for any of them: a Kalman-tracked velocity and an off-manifold pose residual."""
 
 from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
 from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
@@ -31,6 +31,8 @@ from ._mrpf import transition_log_likelihood as transition_log_likelihood
 from ._random_walk import PoseRandomWalk as PoseRandomWalk
 from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
 from ._random_walk import make_pose_random_walk as make_pose_random_walk
+from ._residual import PoseResidual as PoseResidual
+from ._residual import fit_pose_residual as fit_pose_residual
 from ._velocity import StateVelocity as StateVelocity
 from ._velocity import VelocityFit as VelocityFit
 from ._velocity import fit_root_velocity as fit_root_velocity

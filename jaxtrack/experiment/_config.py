@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from ..errors import ConfigurationError
 from ..manifold import OPTIMISERS
@@ -53,6 +54,9 @@ class ExperimentConfig:
             (``TrackerRecipe.velocity``: MRPF and LatentPF).
         manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
+        residual: the scale of the off-manifold pose residual of every tracker whose pose is
+            decoded from a latent point (``jaxtrack.dynamics.PoseResidual``; 0: none), relative
+            to the pose random walk's steps; None: each tracker's own (``TrackerRecipe.residual``).
     """
 
     methods: tuple[str, ...] = PAPER_TRACKERS
@@ -73,6 +77,7 @@ class ExperimentConfig:
     gradient_cost: float = GRADIENT_COST
     velocity: bool | None = None
     manifold: str | None = None
+    residual: float | None = None
 
     def __post_init__(self):
         if not self.methods:
@@ -96,6 +101,9 @@ class ExperimentConfig:
                                                or self.pixel_samples < 4):
             raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum) or None, "
                                      f"got {self.pixel_samples!r}")
+        if self.residual is not None and (isinstance(self.residual, bool) or not isinstance(self.residual, (int, float))
+                                          or not (math.isfinite(self.residual) and self.residual >= 0)):
+            raise ConfigurationError(f"residual must be a scale >= 0 or None (each tracker's own), got {self.residual!r}")
         if self.manifold is not None and self.manifold not in MANIFOLD_KINDS:
             raise ConfigurationError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
         budget = self.tracking_budget
@@ -121,6 +129,10 @@ class ExperimentConfig:
     def velocity_of(self, method: str) -> bool:
         """Whether tracker ``method`` carries a Kalman-tracked velocity."""
         return get_tracker(method).velocity_for(self.velocity)
+
+    def residual_of(self, method: str) -> float:
+        """The scale of tracker ``method``'s off-manifold pose residual (0: none)."""
+        return get_tracker(method).residual_for(self.residual)
 
     def latent_dim_of(self, method: str) -> int | None:
         """The latent dimension of tracker ``method``'s manifold (None if it needs none)."""

@@ -182,7 +182,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         per_method = results["sequences"][name] = {}
         for method in config.methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
-            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from)
+            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
+                                    residual_from=validation_poses, residual_scale=config.residual_of(method))
             if velocity_from is not None and method not in results["velocity"]:
                 moving = tracker.dynamics
                 spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()

@@ -24,4 +24,4 @@ def build(dynamics, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("glegbpf", "GLE-GbPF", "graph-based particle filter on a Generalised Laplacian Eigenmap (002 Alg. 1)",
-                       fit, build, needs_manifold=True, manifold="gle", manifolds=SPECTRAL_MANIFOLD_KINDS, velocity=True)
+                       fit, build, needs_manifold=True, manifold="gle", manifolds=SPECTRAL_MANIFOLD_KINDS, velocity=True, residual=0.0)

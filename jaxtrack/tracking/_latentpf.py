@@ -21,4 +21,4 @@ def build(dynamics, likelihood, budget):
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,
-                       needs_manifold=True, manifold="gpdm", velocity=True, latent_dim=LATENT_DIM)
+                       needs_manifold=True, manifold="gpdm", velocity=True, latent_dim=LATENT_DIM, residual=0.0)

@@ -19,7 +19,7 @@ from .._custom_types import Array, Key, PRNGKeyArray
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
 from ..camera import check_in_view
-from ..dynamics import AbstractDynamics, VelocityFit, fit_state_velocity
+from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import SampledSilhouetteLikelihood, calibrate_shape, check_silhouettes, make_silhouette_likelihood, sample_frames
@@ -121,7 +121,8 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 
 
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
-                  velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None):
+                  velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None,
+                  residual_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None, residual_scale: float = 0.0):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
     With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
@@ -131,11 +132,22 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     any tracker whose filter has a ``dynamics`` field (``SIR``, ``APF``) moves with the body
     instead of diffusing behind it.
 
+    With ``residual_scale`` > 0 the dynamics (inside the velocity) carry an off-manifold pose
+    residual (``jaxtrack.dynamics.PoseResidual``) whose steps are ``residual_scale`` times the
+    RMS joint-angle steps of the ``residual_from`` poses.
+
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``): its ``refine`` field
     is set, so any tracker whose filter has one (``SIR``, ``APF``) can be refined."""
     recipe.check_budget(budget)
     tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    if residual_scale:
+        if not hasattr(tracker, "dynamics") or residual_from is None:
+            raise ValueError(f"a pose residual needs a filter with a 'dynamics' field ({recipe.label}'s is "
+                             f"{type(tracker).__name__}) and validation poses to fit it on")
+        with jax.enable_x64(True):
+            residual = fit_pose_residual(tracker.dynamics, [np.asarray(p, np.float64) for p in residual_from], residual_scale)
+        tracker = eqx.tree_at(lambda f: f.dynamics, tracker, cast_floating(residual, TRACKING_DTYPE))
     if velocity_from is not None:
         if not hasattr(tracker, "dynamics"):
             raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'dynamics' field: it cannot carry a velocity")
@@ -309,9 +321,10 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
                    calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
-                   on_chunk=None, pixel_samples: int | None = None):
+                   on_chunk=None, pixel_samples: int | None = None, residual: float | None = None):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
-    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``); ``chunk_frames``
+    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``; ``residual`` None:
+    its own pose residual, ``TrackerRecipe.residual``); ``chunk_frames``
     and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``pixel_samples``
     as for ``prepare_test``.
 
@@ -320,6 +333,9 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     from ._registry import get_tracker, tracker_index
 
     recipe = get_tracker(method)
+    if residual and recipe.residual is None:
+        raise ValueError(f"{recipe.label} takes no pose residual: its state holds the pose itself (or its estimate is "
+                         f"projected onto the manifold); the trackers that take one decode their pose from a latent point")
     budget_ = Budget(budget, layers, refine_steps)
     recipe.check_budget(budget_)
     spectral = isinstance(model, SpectralEmbedding)
@@ -334,5 +350,6 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
-                            velocity_from=motion.validation if recipe.velocity_for(velocity) else None)
+                            velocity_from=motion.validation if recipe.velocity_for(velocity) else None,
+                            residual_from=motion.validation, residual_scale=recipe.residual_for(residual))
     return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)

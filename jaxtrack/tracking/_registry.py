@@ -124,6 +124,10 @@ class TrackerRecipe:
         min_layers: the fewest layers the tracker works with.
         latent_dim: the latent dimension of the tracker's manifold unless the experiment names
             one for every tracker (None: the kind's default, ``DEFAULT_LATENT_DIMS``).
+        residual: for a tracker whose pose is decoded from a latent point, the default scale of
+            an off-manifold pose residual (``dynamics.PoseResidual``; 0: none) unless the
+            experiment names one for every such tracker; None for a tracker whose state holds
+            the pose itself (or whose estimate projects onto the manifold), which takes none.
     """
 
     name: str
@@ -138,6 +142,7 @@ class TrackerRecipe:
     annealed: bool = False
     min_layers: int = 1
     latent_dim: int | None = None
+    residual: float | None = None
 
     def __post_init__(self):
         if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
@@ -147,6 +152,8 @@ class TrackerRecipe:
         if self.manifold not in self.manifolds or not set(self.manifolds) <= set(MANIFOLD_KINDS):
             raise ValueError(f"tracker {self.name!r}: manifold {self.manifold!r} and manifolds {self.manifolds} must be "
                              f"among {MANIFOLD_KINDS}, the first among the second")
+        if self.residual is not None and not (np.isfinite(self.residual) and self.residual >= 0):
+            raise ValueError(f"tracker {self.name!r}: residual must be a scale >= 0 or None, got {self.residual!r}")
         if self.latent_dim is not None and (isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int)
                                             or self.latent_dim < 1):
             raise ValueError(f"tracker {self.name!r}: latent_dim must be a positive integer or None, got {self.latent_dim!r}")
@@ -177,6 +184,13 @@ class TrackerRecipe:
         """Whether this tracker carries a velocity when the experiment asks for ``requested``
         (None: the tracker's own default)."""
         return self.velocity if requested is None else bool(requested)
+
+    def residual_for(self, requested: float | None) -> float:
+        """The scale of this tracker's pose residual when the experiment asks for ``requested``
+        (None: the tracker's own default); 0 for a tracker that takes none."""
+        if self.residual is None:
+            return 0.0
+        return self.residual if requested is None else float(requested)
 
     def check_budget(self, budget: Budget) -> None:
         """Raise ``ValueError`` if this tracker cannot spend ``budget``."""
