@@ -120,6 +120,19 @@ def test_experiment_end_to_end(sequences, tmp_path):
 
 
 @pytest.mark.slow
+def test_experiment_reports_the_pose_residual(sequences, tmp_path):
+    """``residual``: the latent trackers carry it (inside their velocity) and the results say its
+    scale and fitted steps; SIR, whose state is the pose, does not."""
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir", "glegbpf"), budget=40, runs=1, frames=3, residual=1.0)
+    results = run_experiment(train, validation, test, config, out_dir=str(tmp_path), names={"test": ["walk.npz"]},
+                             progress=False, animations=False)
+    assert set(results["residual"]) == {"glegbpf"} and results["residual"]["glegbpf"]["scale"] == 1.0
+    assert len(results["residual"]["glegbpf"]["step_rad"]) == 26 and min(results["residual"]["glegbpf"]["step_rad"]) > 0
+    assert all(np.isfinite(v["error_mm_mean"]) for v in results["sequences"]["walk.npz"].values())
+
+
+@pytest.mark.slow
 def test_experiment_calibrates_the_body_first(sequences, tmp_path):
     """``calibrate_shape``: the radii are fitted on frame 0 of each test sequence, reported, and
     the calibrated body lowers the silhouette cost there."""

@@ -118,7 +118,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         latent_dim)``, e.g. "gpdm-2d": kind, class, frames, latent dimension, objective, steps,
         fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
         "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
-        entries carry a velocity and its fitted spreads),
+        entries carry a velocity and its fitted spreads), "residual" (per tracker that carries an
+        off-manifold pose residual, ``config.residual_of``: its scale and fitted step scales),
         "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve (mean over the runs, and each run's), per-part errors, frames/s, the
@@ -146,7 +147,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
     validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
-    results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {}, "sequences": {},
+    results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
+               "residual": {}, "sequences": {},
                "estimates": {}, "shape_calibration": {}}
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
@@ -184,6 +186,10 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
                                     residual_from=validation_poses, residual_scale=config.residual_of(method))
+            if config.residual_of(method) and method not in results["residual"]:
+                carrier = tracker.dynamics.inner if velocity_from is not None else tracker.dynamics
+                results["residual"][method] = {"scale": config.residual_of(method),
+                                               "step_rad": np.asarray(carrier.scales, np.float64).round(6).tolist()}
             if velocity_from is not None and method not in results["velocity"]:
                 moving = tracker.dynamics
                 spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
