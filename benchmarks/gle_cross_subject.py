@@ -23,6 +23,9 @@ ones in 5 layers: APF 5 x 100 at 500), ``--runs`` runs, with its own defaults (G
     taskset -c 0,1 python benchmarks/gle_cross_subject.py --cmu /tmp/real/cmu --bandai /tmp/real/bandai \\
         --runs 5 --budgets 500 1500 --json gle_cross_subject.json
 
+``--residual 1 --velocity off --methods glegbpf latentpf`` gives the latent trackers an
+off-manifold pose residual (README, "Leaving the manifold").
+
 ``--plot-latent PATH`` draws the LE and GLE embeddings of the combo training sets coloured by
 take and by gait phase instead (no tracking); ``--floors`` measures how close each protocol's
 training poses and GLE can get to its test poses (``manifold_floors``).

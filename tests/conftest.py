@@ -72,3 +72,21 @@ def _release_compiled_programs(request):
     maps = _memory_maps_in_use()
     if request.node.get_closest_marker("slow") is not None or (maps is not None and maps > MEMORY_MAP_LIMIT // 2):
         jax.clear_caches()
+
+
+@pytest.fixture(scope="session")
+def walk_and_prior():
+    """A 60-frame synthetic walk and an unfitted 2-D GPDM prior on it (``helpers.walk_and_gpdm_prior``)."""
+    from helpers import walk_and_gpdm_prior
+
+    return walk_and_gpdm_prior()
+
+
+@pytest.fixture(scope="session")
+def walk(walk_and_prior):
+    return walk_and_prior[0]
+
+
+@pytest.fixture(scope="session")
+def gpdm_prior(walk_and_prior):
+    return walk_and_prior[1]

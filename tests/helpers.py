@@ -59,6 +59,16 @@ def small_experiment_sequences():
     return train, [motion("walk", 20, 7)], [small_scene()[2]]
 
 
+def walk_and_gpdm_prior():
+    """A 60-frame synthetic walk (poses (60, 32), float64) and a 2-D GPDM prior on its first 45
+    frames, PCA-initialised and unfitted (the maps are what the dynamics tests test)."""
+    from jaxtrack.manifold import make_gpdm, make_manifold_prior
+
+    motion = generate_motion("walk", "S1", num_frames=60, fps=30.0, key=jax.random.key(5), dtype=jnp.float64)
+    walk = np.asarray(motion.pose)
+    return walk, make_manifold_prior(make_gpdm([walk[:25, 6:], walk[25:45, 6:]], 2), walk.shape[1])
+
+
 def check_refinement_keeps_transition(dynamics, pose, getkey, *, particles: int = 20000):
     """``log_transition`` is the density ``propose`` draws from: MALA moves targeting it alone
     keep a sample of the transition a sample of it (means within 0.06 sd, sds within 6 %)."""

@@ -31,21 +31,9 @@ from jaxtrack.dynamics import (
     world_to_heading,
 )
 from jaxtrack.filters import APF, SIR, LangevinRefinement, StateMean, run_filter
-from jaxtrack.manifold import make_bc_gplvm, make_gpdm, make_manifold_prior
+from jaxtrack.manifold import make_bc_gplvm, make_manifold_prior
 
 from helpers import check_refinement_keeps_transition
-
-
-@pytest.fixture(scope="module")
-def walk():
-    motion = generate_motion("walk", "S1", num_frames=60, fps=30.0, key=jax.random.key(5), dtype=jnp.float64)
-    return np.asarray(motion.pose)
-
-
-@pytest.fixture(scope="module")
-def gpdm_prior(walk):
-    model = make_gpdm([walk[:25, 6:], walk[25:45, 6:]], 2)  # PCA-initialised, unfitted: the maps are what is tested
-    return make_manifold_prior(model, walk.shape[1])
 
 
 def circle(frames, speed, radius, bounce=0.0):

@@ -7,27 +7,18 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.data import generate_motion
 from jaxtrack.dynamics import PoseResidual, StateVelocity, fit_gpdm_latent_dynamics, fit_pose_residual, fit_root_velocity
 from jaxtrack.errors import ConfigurationError
 from jaxtrack.experiment import ExperimentConfig
 from jaxtrack.filters import SIR, LangevinRefinement, StateMean, run_filter
 from jaxtrack.likelihood import as_likelihood
-from jaxtrack.manifold import make_gpdm, make_manifold_prior
 
 from helpers import check_refinement_keeps_transition
 
 
 @pytest.fixture(scope="module")
-def walk():
-    motion = generate_motion("walk", "S1", num_frames=60, fps=30.0, key=jax.random.key(5), dtype=jnp.float64)
-    return np.asarray(motion.pose)
-
-
-@pytest.fixture(scope="module")
-def gpdm(walk):
-    model = make_gpdm([walk[:25, 6:], walk[25:45, 6:]], 2)  # PCA-initialised, unfitted: the maps are what is tested
-    return fit_gpdm_latent_dynamics(make_manifold_prior(model, walk.shape[1]), walk[45:])
+def gpdm(walk, gpdm_prior):
+    return fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
 
 
 def test_starts_at_the_given_pose_not_at_its_projection(gpdm, walk, getkey):
