@@ -194,6 +194,7 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
     assert not (tmp_path / "cut.npz").exists()
 
 
+@pytest.mark.slow
 def test_track_with_a_pose_residual(tmp_path, capsys):
     """``track --residual SCALE`` runs a latent tracker with the residual; a tracker whose state
     is the pose refuses it with a clear message."""

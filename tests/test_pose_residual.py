@@ -82,8 +82,7 @@ def test_fit_and_bad_input(gpdm, walk):
 def test_a_latent_tracker_with_a_residual_reaches_a_pose_off_its_manifold(gpdm, walk, getkey):
     """The truth is the manifold's pose with one knee bent 0.25 rad further: LatentPF on the
     manifold alone stays about 0.25 rad off in that angle; with the residual most of the offset
-    is found within 18 frames (the residual walks in all 26 angles with 300 particles), and the
-    run is the same jitted or not."""
+    is found within 18 frames (the residual walks in all 26 angles with 300 particles)."""
     target = jnp.asarray(walk[12:30])
     target = target.at[:, 20].add(0.25)
     lik = as_likelihood(lambda poses, truth: -0.5 * jnp.sum(((poses - truth) / 0.05) ** 2, axis=1))
@@ -94,14 +93,23 @@ def test_a_latent_tracker_with_a_residual_reaches_a_pose_off_its_manifold(gpdm, 
         key = getkey()
         info = run_filter(tracker, key, jnp.asarray(walk[11]), target)[1]
         errors[scale] = float(jnp.mean(jnp.abs(info.estimate[-6:, 20] - target[-6:, 20])))
-        if scale:
-            with jax.disable_jit():
-                eager = run_filter(tracker, key, jnp.asarray(walk[11]), target)[1]
-            np.testing.assert_allclose(info.estimate, eager.estimate, rtol=1e-7, atol=1e-9)
-            refined = SIR(StateVelocity(dynamics, jnp.full(6, 0.01), jnp.full(6, 0.02)), lik, 100, refine=LangevinRefinement(1))
-            assert np.all(np.isfinite(np.asarray(run_filter(refined, key, jnp.asarray(walk[11]), target)[1].estimate)))
     assert errors[0.0] > 0.15, errors
     assert errors[1.0] < 0.4 * errors[0.0], errors
+
+
+@pytest.mark.slow
+def test_same_key_same_result_jitted_or_not(gpdm, walk, getkey):
+    """A tracker with the residual inside a velocity, plain and refined: the same run jitted or
+    not, and finite."""
+    lik = as_likelihood(lambda poses, truth: -0.5 * jnp.sum(((poses - truth) / 0.05) ** 2, axis=1))
+    dynamics = StateVelocity(fit_pose_residual(gpdm, walk[45:], 1.0), jnp.full(6, 0.01), jnp.full(6, 0.02))
+    key, observations = getkey(), jnp.asarray(walk[12:15])
+    for tracker in (SIR(dynamics, lik, 100, estimator=StateMean()), SIR(dynamics, lik, 100, refine=LangevinRefinement(1))):
+        jitted = run_filter(tracker, key, jnp.asarray(walk[11]), observations)[1]
+        with jax.disable_jit():
+            eager = run_filter(tracker, key, jnp.asarray(walk[11]), observations)[1]
+        np.testing.assert_allclose(jitted.estimate, eager.estimate, rtol=1e-7, atol=1e-9)
+        assert np.all(np.isfinite(np.asarray(jitted.estimate)))
 
 
 def test_build_tracker_wraps_the_residual_inside_the_velocity(gpdm, walk):
