@@ -292,6 +292,7 @@ def main():
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
+                                    "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "manifold": config.manifold_of(m), "latent_dim": config.latent_dim_of(m),
                                     "velocity": config.velocity_of(m), "residual": config.residual_of(m)} for m in args.methods},
                 })
