@@ -24,7 +24,7 @@ def row_name(row: dict) -> str:
 
 
 def setting_label(row: dict) -> str:
-    parts = [f"{row['protocol']}: {row['test']}"] if "protocol" in row else []
+    parts = [f"{row['protocol']}:\n{row['test']}\n"] if "protocol" in row else []
     parts.append(f"{row['views']} views")
     if row.get("latent_dim", 2) not in (2, None):  # None: each manifold kind's own
         parts.append(f"latent dim {row['latent_dim']}")
@@ -33,7 +33,7 @@ def setting_label(row: dict) -> str:
     residuals = {r.get("residual") for r in row["methods"].values()} - {None, 0.0}
     if residuals:
         parts.append(f"residual {', '.join(f'{r:g}' for r in sorted(residuals))}")
-    return ", ".join(parts)
+    return ", ".join(parts).replace("\n, ", "\n")
 
 
 def main():
@@ -50,7 +50,7 @@ def main():
     if not rows:
         parser.error(f"no rows for {args.sequence}")
     methods = args.methods or list(dict.fromkeys(m for row in rows for m in row["methods"]))
-    fig, axes = plt.subplots(len(rows), len(methods), figsize=(3.2 * len(methods), 2.4 * len(rows)), sharex=True, sharey=True,
+    fig, axes = plt.subplots(len(rows), len(methods), figsize=(3.2 * len(methods), 2.4 * len(rows)), sharey=True,
                              squeeze=False)
     top = max(max(max(c) for c in row["methods"][m]["per_frame_error_mm_per_run"]) for row in rows for m in methods
               if m in row["methods"])
@@ -68,7 +68,7 @@ def main():
             ax.set_title(f"{method}: {result['error_mm_mean']:.0f} mm, drift {result['last_over_first_quarter']:.2f}", fontsize=8)
             ax.set_ylim(0, min(top, 200) * 1.05)
             if j == 0:
-                ax.set_ylabel(f"{setting_label(row)}\nerror (mm)", fontsize=8)
+                ax.set_ylabel(f"{setting_label(row)}\nerror (mm)", fontsize=7)
             if i == len(rows) - 1:
                 ax.set_xlabel("frame", fontsize=8)
             ax.tick_params(labelsize=7)
