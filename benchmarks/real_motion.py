@@ -73,7 +73,7 @@ def main():
     parser.add_argument("--views", type=int, nargs="+", default=[4, 3])
     parser.add_argument("--velocity", nargs="+", choices=["own", "on", "off"], default=["own"],
                         help="Kalman-tracked velocity for every tracker (on), none (off), or each tracker's own default")
-    parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm"],
+    parser.add_argument("--manifold", nargs="+", default=["own"], choices=["own", "bc-gplvm", "gpdm", "bc-gpdm"],
                         help="the manifold of every manifold tracker (own: each tracker's paper's)")
     parser.add_argument("--latent-dim", type=int, nargs="+", default=[None],
                         help="latent dimensions of the manifolds (several: one table each; default: each tracker's own, "

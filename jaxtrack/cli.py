@@ -99,7 +99,7 @@ def _fit(args) -> int:
 
     from .body import GLOBAL_DOFS, joint_angles
     from .io import check_output, load_sequence
-    from .manifold import SPECTRAL_GRAPHS, fit_spectral, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
+    from .manifold import SPECTRAL_GRAPHS, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
     from .tracking import DEFAULT_LATENT_DIMS
 
     args.out = check_output(args.out, args.motion)
@@ -129,6 +129,8 @@ def _fit(args) -> int:
         model = make_bc_gplvm(Y, args.latent_dim, back_constraint="mlp", key=jax.random.key(args.seed))
     elif args.model == "sparse-gplvm":
         model = make_sparse_gplvm(Y, args.latent_dim, num_inducing=min(args.inducing, Y.shape[0]))
+    elif args.model == "bc-gpdm":
+        model = make_bc_gpdm(sequences, args.latent_dim)
     else:
         model = make_gpdm(sequences, args.latent_dim)
     fitted, info = model.fit(max_steps=args.steps, progress=True)
@@ -349,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
-    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm", "gle", "tle", "le"),
+    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm", "bc-gpdm", "gle", "tle", "le"),
                      default="bc-gplvm", help="a GP model (fitted by L-BFGS), or a Laplacian Eigenmap (closed form) with its "
                                               "RBF networks: gle (002; the files' gait cycles are its repetitions), tle "
                                               "(temporal neighbours), le (nearest neighbours in pose space) (default: %(default)s)")
@@ -401,7 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "of the pose or latent point where the dynamics support it) fitted on the validation motion "
                                  f"(default: each tracker's own: {_velocity_defaults()})")
     experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
-                            help="the manifold of every manifold tracker of its family (GP: bc-gplvm, gpdm; Laplacian "
+                            help="the manifold of every manifold tracker of its family (GP: bc-gplvm, gpdm, bc-gpdm; Laplacian "
                                  "Eigenmaps: gle, tle, le; the other family keeps its own) (default: each tracker's own: "
                                  f"{_manifold_defaults()})")
     experiment.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("every tracker"))

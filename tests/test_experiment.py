@@ -29,6 +29,7 @@ def test_bad_experiment_inputs(sequences):
     with pytest.raises(ValueError, match="GPAPF needs at least 2 layers"):
         ExperimentConfig(methods=("gpapf",), budget=100, layers=1)
     assert ExperimentConfig(methods=("mrpf",), manifold="gpdm").manifold_kinds == ("gpdm",)  # GPDM latent proposal
+    assert ExperimentConfig(methods=("mrpf", "gpapf"), manifold="bc-gpdm").manifold_kinds == ("bc-gpdm",)
     with pytest.raises(ValueError, match="manifold must be one of"):
         ExperimentConfig(manifold="isomap")
     with pytest.raises(ValueError, match="fit_optimiser must be one of"):

@@ -13,6 +13,7 @@ from jaxtrack.manifold import (
     fit_model,
     fit_pca,
     gaussian_log_marginal,
+    make_bc_gpdm,
     make_bc_gplvm,
     make_gpdm,
     make_gplvm,
@@ -146,6 +147,50 @@ def test_gpdm_respects_sequence_boundaries(walk_jog):
     assert info.objective > float(model.objective())
 
 
+@pytest.mark.slow
+def test_bc_gpdm_is_the_gpdm_at_its_back_constrained_points(walk_jog):
+    """The back-constrained GPDM starts at the GPDM's PCA latent points, its objective is 001
+    eq. 11 at ``X = g(Y)``, and its gradient in g's weights matches finite differences."""
+    walk, jog = walk_jog
+    takes = [walk.pose[:20, 6:], jog.pose[:12, 6:]]
+    bc, plain = make_bc_gpdm(takes, 3), make_gpdm(takes, 3)
+    np.testing.assert_allclose(bc.training_latent(), plain.latent, atol=1e-3 * float(jnp.max(jnp.abs(plain.latent))))
+    moved = eqx.tree_at(lambda m: m.back.weights, bc, bc.back.weights * 1.3 + 0.01)
+    at_points = eqx.tree_at(lambda m: m.latent, plain, moved.back(moved.data))
+    assert float(moved.objective()) == pytest.approx(float(at_points.objective()), rel=1e-12)
+    z = moved.training_latent()[:4] + 0.1
+    np.testing.assert_allclose(predict(moved, z)[0], predict(at_points, z)[0], rtol=1e-10)
+    np.testing.assert_allclose(moved.latent_dynamics()(z)[0], at_points.latent_dynamics()(z)[0], rtol=1e-10)
+
+    def objective(weights):
+        return eqx.tree_at(lambda m: m.back.weights, moved, weights).objective()
+
+    direction = jax.random.normal(jax.random.key(3), bc.back.weights.shape, bc.back.weights.dtype)
+    finite_difference_check(objective, moved.back.weights, direction, eps=1e-6, rtol=1e-5)
+    with pytest.raises(ValueError, match="gamma_x must be positive"):
+        make_bc_gpdm(takes, 3, gamma_x=0.0)
+
+
+@pytest.mark.slow
+def test_bc_gpdm_joins_two_takes_of_one_walk():
+    """Two noisy takes of one walk that overlap in phase: the back-constrained GPDM puts the end
+    of the first take among the second take's points, where the plain GPDM leaves it apart."""
+    walk = generate_motion("walk", "S1", num_frames=70, fps=30.0, key=jax.random.key(5), dtype=jnp.float64).pose[:, 6:]
+    noise = 0.01 * np.random.default_rng(0).standard_normal(walk.shape)
+    takes = [walk[:40], walk[25:] + noise[25:]]
+
+    def gap(model):
+        """The first take's last latent point's distance to the second take, in median steps."""
+        z = np.asarray(model.training_latent())
+        steps = np.linalg.norm(np.diff(z[:40], axis=0), axis=1)
+        return np.min(np.linalg.norm(z[40:] - z[39], axis=1)) / np.median(steps)
+
+    bc = make_bc_gpdm(takes, 2).fit(max_steps=150)[0]
+    plain = make_gpdm(takes, 2).fit(max_steps=150)[0]
+    print(f"end of take 1 to take 2: back-constrained {gap(bc):.2f}, plain {gap(plain):.2f} median steps")
+    assert gap(bc) < 1.5 and gap(bc) < gap(plain)
+
+
 def test_bad_training_data():
     Y = np.random.default_rng(0).normal(size=(20, 4))
     with pytest.raises(ValueError, match="non-finite value at frame 3, dimension 1"):
@@ -165,7 +210,8 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
 
     walk, jog = walk_jog
     angles = walk.pose[:30, 6:]
-    models = (make_gplvm(angles, 2), make_bc_gplvm(angles, 2), make_gpdm([walk.pose[:20, 6:], jog.pose[:10, 6:]], 3))
+    takes = [walk.pose[:20, 6:], jog.pose[:10, 6:]]
+    models = (make_gplvm(angles, 2), make_bc_gplvm(angles, 2), make_gpdm(takes, 3), make_bc_gpdm(takes, 3))
     for model in models:
         path = tmp_path / f"{type(model).__name__}.eqx"
         save_model(path, model, extra={"note": "test"})
@@ -247,6 +293,7 @@ def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
 
     from jaxtrack.cli import main
     from jaxtrack.io import Sequence, save_sequence
+    from jaxtrack.manifold import load_model
 
     walk, jog = walk_jog
     layout = np.array(walk.body.skeleton.pose_layout)
@@ -256,6 +303,9 @@ def test_fit_and_plot_latent_cli(walk_jog, tmp_path):
     arguments = ["fit", str(tmp_path / "walk.npz"), str(tmp_path / "jog.npz"), "--model", "gpdm", "--latent-dim", "2", "--steps", "50"]
     assert main([*arguments, "--out", str(out)]) == 0
     assert main(["plot-latent", str(out)]) == 0
+    constrained = tmp_path / "bc.eqx"
+    assert main([*arguments[:3], "--model", "bc-gpdm", "--steps", "20", "--out", str(constrained)]) == 0
+    assert type(load_model(constrained)[0]).__name__ == "BCGPDM"
     image = iio.imread(tmp_path / "model_latent.png")
     assert image.shape[0] > 200
     no_pose = tmp_path / "joints.npz"
@@ -311,7 +361,7 @@ def test_cmu_walk_and_jog_manifold(shared_data):
 def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
 
-    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "SparseGPLVM", "SpectralEmbedding"}
+    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "BCGPDM", "SparseGPLVM", "SpectralEmbedding"}
     walk, _ = walk_jog
     Y = walk.pose[:30, 6:]
     for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2)):

@@ -52,7 +52,7 @@ class ExperimentConfig:
             BC-GPLVM) or the latent point (latent random walk), fitted on the validation motion
             (``jaxtrack.dynamics.StateVelocity``); False: none does; None: each tracker's own
             (``TrackerRecipe.velocity``: MRPF and LatentPF).
-        manifold: the manifold every manifold tracker runs on ("bc-gplvm" or "gpdm"), or None
+        manifold: the manifold every manifold tracker runs on (one of ``MANIFOLD_KINDS``), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
         residual: the scale of the off-manifold pose residual of every tracker whose pose is
             decoded from a latent point (``jaxtrack.dynamics.PoseResidual``; 0: none), relative

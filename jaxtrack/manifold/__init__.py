@@ -1,5 +1,5 @@
 """Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
-(kernel or MLP), sparse GPLVM and GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
+(kernel or MLP), sparse GPLVM, GPDM and back-constrained GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
 manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
 family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002), its RBF
 networks, and ``SpectralEmbedding`` (``fit_spectral``: LE, temporal LE or GLE with its RBF
@@ -8,6 +8,8 @@ networks, fitted in closed form), the manifold GLE-GbPF walks on."""
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
 from ._base import register_manifold as register_manifold
+from ._bc_gpdm import BCGPDM as BCGPDM
+from ._bc_gpdm import make_bc_gpdm as make_bc_gpdm
 from ._dtw import dtw_distance as dtw_distance
 from ._dtw import subsequence_dtw as subsequence_dtw
 from ._eigenmaps import connected_components as connected_components

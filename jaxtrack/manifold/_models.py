@@ -170,6 +170,21 @@ class KernelBackConstraint(eqx.Module):
         return eqx.tree_at(lambda b: (b.weights, b.bias), spec, (True, True))
 
 
+def kernel_back_constraint(Y: Float[Array, "n d"], latent: Float[Array, "n q"], gamma_x: float | None = None) -> KernelBackConstraint:
+    """The kernel back-constraint over the (standardised) training poses ``Y`` whose weights
+    are solved so that ``g(Y)`` starts at ``latent`` (least squares, a 1e-6 jitter).
+    ``gamma_x`` None: ``1 / (mean squared distance between the poses)``."""
+    if gamma_x is None:
+        gamma_x = 1.0 / float(jnp.mean(squared_distances(Y, Y)))
+    if not gamma_x > 0:
+        raise ValueError(f"gamma_x must be positive, got {gamma_x}")
+    Kx = jnp.exp(-0.5 * gamma_x * squared_distances(Y, Y))
+    L = safe_cholesky(Kx + 1e-6 * jnp.eye(Kx.shape[0], dtype=Y.dtype))
+    weights = jax.scipy.linalg.cho_solve((L, True), latent.astype(Y.dtype))
+    return KernelBackConstraint(weights=weights, bias=jnp.zeros(latent.shape[1], Y.dtype), inputs=Y,
+                                gamma_x=jnp.asarray(gamma_x, Y.dtype))
+
+
 class MLPBackConstraint(eqx.Module):
     """``z = y P + b + MLP(y)``: a linear map (initialised to the PCA projection) plus a tanh
     multilayer perceptron whose last layer starts at zero, so fitting starts from PCA
@@ -379,15 +394,7 @@ def make_bc_gplvm(
     Yj = jnp.asarray(Yn, dtype)
     Z0 = _initial_latent(Yn, latent_dim).astype(dtype)
     if back_constraint == "kernel":
-        if gamma_x is None:
-            gamma_x = 1.0 / float(jnp.mean(squared_distances(Yj, Yj)))
-        if not gamma_x > 0:
-            raise ValueError(f"gamma_x must be positive, got {gamma_x}")
-        Kx = jnp.exp(-0.5 * gamma_x * squared_distances(Yj, Yj))
-        # Least-squares weights so that g(Y) starts at the PCA latent points.
-        L = safe_cholesky(Kx + 1e-6 * jnp.eye(Kx.shape[0], dtype=dtype))
-        weights = jax.scipy.linalg.cho_solve((L, True), Z0)
-        back = KernelBackConstraint(weights=weights, bias=jnp.zeros(latent_dim, dtype), inputs=Yj, gamma_x=jnp.asarray(gamma_x, dtype))
+        back = kernel_back_constraint(Yj, Z0, gamma_x)
     else:
         if key is None:
             raise ValueError("the MLP back-constraint needs an explicit PRNG key: pass key=... for its initial weights")

@@ -23,7 +23,7 @@ from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_sta
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import SampledSilhouetteLikelihood, calibrate_shape, check_silhouettes, make_silhouette_likelihood, sample_frames
-from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gplvm, make_gpdm
+from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm
 from ._registry import DEFAULT_LATENT_DIMS, MANIFOLD_KINDS, SPECTRAL_MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
 
 TRACKING_DTYPE = jnp.float32
@@ -71,10 +71,19 @@ def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
                              "rate and track at it; resample with 'jaxtrack convert --fps'")
 
 
+# How each GP kind is initialised from the training joint-angle sequences (a list of (T_i, A)).
+GP_MANIFOLD_MAKERS = {
+    "bc-gplvm": lambda angles, latent_dim: make_bc_gplvm(np.concatenate(angles), latent_dim),
+    "gpdm": make_gpdm,
+    "bc-gpdm": make_bc_gpdm,
+}
+
+
 def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: int, *, kind: str = "bc-gplvm",
                  progress: bool = False, optimiser: str = "optax"):
     """A manifold of the joint angles of the training pose sequences, in float64: a BC-GPLVM
-    (000 eqs. 21-22), a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows), or an LE,
+    (000 eqs. 21-22), a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows), a GPDM under
+    000's back-constraint (``manifold.BCGPDM``), or an LE,
     temporal LE or GLE embedding with its RBF networks (002; closed form, ``steps`` unused).
     ``latent_dim`` None: the kind's default (``DEFAULT_LATENT_DIMS``); ``optimiser``: the GP
     models' L-BFGS (``manifold.fit_model``; "optax", the experiment's default, or "lbfgs").
@@ -91,7 +100,7 @@ def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: i
         if kind in SPECTRAL_MANIFOLD_KINDS:
             model = fit_spectral(angles, kind, latent_dim=latent_dim)
         else:
-            model = make_bc_gplvm(np.concatenate(angles), latent_dim) if kind == "bc-gplvm" else make_gpdm(angles, latent_dim)
+            model = GP_MANIFOLD_MAKERS[kind](angles, latent_dim)
         fitted, info = model.fit(max_steps=steps, progress=progress, optimiser=optimiser)
     return fitted, info, starts
 

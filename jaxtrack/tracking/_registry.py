@@ -20,13 +20,13 @@ from ..manifold import ManifoldPrior
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
 # 2 CPU cores (benchmarks/bench_gradient.py).
 GRADIENT_COST = 50.0
-GP_MANIFOLD_KINDS = ("bc-gplvm", "gpdm")  # 000's BC-GPLVM, 001's GPDM
+GP_MANIFOLD_KINDS = ("bc-gplvm", "gpdm", "bc-gpdm")  # 000's BC-GPLVM, 001's GPDM, and the GPDM under 000's back-constraint
 SPECTRAL_MANIFOLD_KINDS = ("gle", "tle", "le")  # 002's Laplacian Eigenmaps family, with RBF networks
 MANIFOLD_KINDS = GP_MANIFOLD_KINDS + SPECTRAL_MANIFOLD_KINDS  # what tracking.fit_manifold fits
 # Latent dimensions when neither the experiment nor the tracker names one: 2 for the GP models
 # (000), 3 for the spectral ones (GLE in 2-D folds walks and jogs of several subjects onto each
 # other). A tracker may name its own (``TrackerRecipe.latent_dim``: MRPF 2, GPAPF and LatentPF 3).
-DEFAULT_LATENT_DIMS = {"bc-gplvm": 2, "gpdm": 2, "gle": 3, "tle": 3, "le": 3}
+DEFAULT_LATENT_DIMS = {"bc-gplvm": 2, "gpdm": 2, "bc-gpdm": 2, "gle": 3, "tle": 3, "le": 3}
 
 
 @dataclasses.dataclass(frozen=True)
