@@ -17,10 +17,9 @@ frame 0, where every tracker starts.
 from __future__ import annotations
 
 import argparse
-import os
 
 from bench_output import write_json
-from real_motion import PROTOCOLS
+from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes
 
 
 def joint_error_mm(skeleton, truth, angles):
@@ -40,9 +39,7 @@ def joint_error_mm(skeleton, truth, angles):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--cmu", help="folder with the converted CMU takes")
-    parser.add_argument("--bandai", help="folder with the converted Bandai takes")
-    parser.add_argument("--sequences", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
+    add_protocol_arguments(parser)
     parser.add_argument("--latent-dim", type=int, nargs="+", default=[2, 3])
     parser.add_argument("--kind", default="gpdm", choices=["gpdm", "bc-gplvm"])
     parser.add_argument("--fit-steps", type=int, default=200)
@@ -53,7 +50,6 @@ def main():
     import numpy as np
 
     from jaxtrack.body import GLOBAL_DOFS
-    from jaxtrack.io import load_sequence
     from jaxtrack.tracking import fit_manifold, sequence_poses
 
     folders = {"cmu": args.cmu, "bandai": args.bandai}
@@ -61,11 +57,9 @@ def main():
     print("| sequence | latent dim | projection: mean, frame 0 | 003 eq. 5: mean, frame 0 | nearest training pose: mean, frame 0 |")
     print("|---|---:|---|---|---|")
     for name in args.sequences:
-        dataset, train_takes, _validation, test_take, frames = PROTOCOLS[name]
-        if folders[dataset] is None:
-            parser.error(f"{name} needs --{dataset} (the folder of the converted takes)")
+        _dataset, train_takes, _validation, test_take, frames = PROTOCOLS[name]
         key = jax.random.key(0)
-        sequences = {t: load_sequence(os.path.join(folders[dataset], t + ".npz")) for t in [*train_takes, test_take]}
+        sequences = load_protocol_takes(parser, folders, name, [*train_takes, test_take])
         train = [sequence_poses(sequences[t], t, key=key) for t in train_takes]
         test = sequence_poses(sequences[test_take], test_take, key=key)[:frames]
         skeleton = sequences[test_take].body(jnp.float64).skeleton

@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import os
 
 from bench_output import write_json
-from real_motion import PROTOCOLS
+from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes
 
 
 def arc_statistics(latent, starts):
@@ -41,9 +40,7 @@ def arc_statistics(latent, starts):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--cmu", help="folder with the converted CMU takes")
-    parser.add_argument("--bandai", help="folder with the converted Bandai takes")
-    parser.add_argument("--sequences", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
+    add_protocol_arguments(parser)
     parser.add_argument("--latent-dim", type=int, nargs="+", default=[2, 3])
     parser.add_argument("--kinds", nargs="+", default=["gpdm", "bc-gpdm"], choices=["gpdm", "bc-gpdm"])
     parser.add_argument("--fit-steps", type=int, default=200)
@@ -53,7 +50,6 @@ def main():
     import jax
     import numpy as np
 
-    from jaxtrack.io import load_sequence
     from jaxtrack.tracking import fit_manifold, sequence_poses
 
     folders = {"cmu": args.cmu, "bandai": args.bandai}
@@ -61,11 +57,9 @@ def main():
     print("| sequence | latent dim | kind | end gap per take | largest step |")
     print("|---|---:|---|---|---:|")
     for name in args.sequences:
-        dataset, train_takes, _validation, _test, _frames = PROTOCOLS[name]
-        if folders[dataset] is None:
-            parser.error(f"{name} needs --{dataset} (the folder of the converted takes)")
+        train_takes = PROTOCOLS[name][1]
         key = jax.random.key(0)
-        train = [sequence_poses(load_sequence(os.path.join(folders[dataset], t + ".npz")), t, key=key) for t in train_takes]
+        train = [sequence_poses(s, t, key=key) for t, s in load_protocol_takes(parser, folders, name, train_takes).items()]
         for latent_dim in args.latent_dim:
             for kind in args.kinds:
                 model, _info, starts = fit_manifold(train, latent_dim, args.fit_steps, kind=kind)

@@ -38,6 +38,29 @@ PROTOCOLS = {
 }
 
 
+def add_protocol_arguments(parser) -> None:
+    """``--cmu`` and ``--bandai`` (the converted takes' folders) and ``--sequences`` (protocols)."""
+    parser.add_argument("--cmu", help="folder with the converted CMU takes (35_01.npz, ...)")
+    parser.add_argument("--bandai", help="folder with the converted Bandai takes (walk_normal_001.npz, ...)")
+    parser.add_argument("--sequences", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
+
+
+def load_protocol_takes(parser, folders: dict, name: str, takes) -> dict:
+    """The named takes of protocol ``name`` as ``{take: Sequence}``, read from the folder of its
+    dataset (``folders``: dataset -> folder or None); a parser error naming the missing option or
+    file otherwise."""
+    from jaxtrack.io import load_sequence
+
+    dataset = PROTOCOLS[name][0]
+    if folders[dataset] is None:
+        parser.error(f"{name} needs --{dataset} (the folder of the converted takes)")
+    paths = {t: os.path.join(folders[dataset], t + ".npz") for t in takes}
+    missing = [p for p in paths.values() if not os.path.exists(p)]
+    if missing:
+        parser.error(f"{name}: missing {missing[0]}; convert the shared data first (see the shell scripts)")
+    return {t: load_sequence(p) for t, p in paths.items()}
+
+
 def other_body_scene(key, sequence, views: int, frames):
     """The test take rendered with the mismatched body, its radii withheld from the tracker."""
     import jax.numpy as jnp
@@ -64,9 +87,7 @@ def drift_ratio(curve) -> float:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--cmu", help="folder with the converted CMU takes (35_01.npz, ...)")
-    parser.add_argument("--bandai", help="folder with the converted Bandai takes (walk_normal_001.npz, ...)")
-    parser.add_argument("--sequences", nargs="+", default=list(PROTOCOLS), choices=list(PROTOCOLS))
+    add_protocol_arguments(parser)
     parser.add_argument("--methods", nargs="+", default=["sir", "apf", "mrpf", "gpapf", "latentpf"])
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--runs", type=int, default=5)
@@ -90,25 +111,18 @@ def main():
     import jax
 
     from jaxtrack.experiment import ExperimentConfig, results_table, run_experiment
-    from jaxtrack.io import load_sequence
 
     folders = {"cmu": args.cmu, "bandai": args.bandai}
     velocities = [{"own": None, "on": True, "off": False}[v] for v in args.velocity]
     key = jax.random.key(args.seed)
     rows = []
     for name in args.sequences:
-        dataset, train_takes, validation_takes, test_take, frames = PROTOCOLS[name]
-        folder = folders[dataset]
-        if folder is None:
-            parser.error(f"{name} needs --{dataset} (the folder of the converted takes)")
-        paths = {t: os.path.join(folder, t + ".npz") for t in train_takes + validation_takes + [test_take]}
-        missing = [p for p in paths.values() if not os.path.exists(p)]
-        if missing:
-            parser.error(f"{name}: missing {missing[0]}; convert the shared data first (see the shell scripts)")
-        train = [load_sequence(paths[t]) for t in train_takes]
-        validation = [load_sequence(paths[t]) for t in validation_takes]
+        _dataset, train_takes, validation_takes, test_take, frames = PROTOCOLS[name]
+        takes = load_protocol_takes(parser, folders, name, train_takes + validation_takes + [test_take])
+        train = [takes[t] for t in train_takes]
+        validation = [takes[t] for t in validation_takes]
         for views in args.views:
-            test = [other_body_scene(jax.random.fold_in(key, views), load_sequence(paths[test_take]), views, frames)]
+            test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames)]
             residuals = [None if r == "own" else float(r) for r in args.residual]
             for velocity, manifold, latent_dim, residual in itertools.product(velocities, args.manifold, args.latent_dim, residuals):
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
