@@ -16,7 +16,7 @@ BUDGET=${BUDGET:-500}
 if [ ! -d "$DATA" ]; then echo "no CMU data at $DATA (set DATA=...)" >&2; exit 2; fi
 mkdir -p "$OUT"
 [ -f "$OUT/amc/35_29.amc" ] || python "$(dirname "$0")/cmu_trials_to_amc.py" "$OUT/amc" --data "$DATA"
-for trial in 01 02 03 29 17 19 20 21 18; do
+for trial in 01 02 03 29 17 19 20 21 18 04 22; do  # 04, 22: real_motion.py --sequences held-out
     [ -f "$OUT/35_$trial.npz" ] || jaxtrack convert "$OUT/amc/35_$trial.amc" "$OUT/35_$trial.npz" --source-fps 30 --fps 60
 done
 [ -f "$OUT/walk_test.npz" ] || jaxtrack scene "$OUT/35_29.npz" "$OUT/walk_test.npz" --frames 200 --seed 1

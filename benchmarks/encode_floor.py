@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 
 from bench_output import write_json
-from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes
+from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, protocol_names
 
 
 def joint_error_mm(skeleton, truth, angles):
@@ -56,7 +56,7 @@ def main():
     rows = []
     print("| sequence | latent dim | projection: mean, frame 0 | 003 eq. 5: mean, frame 0 | nearest training pose: mean, frame 0 |")
     print("|---|---:|---|---|---|")
-    for name in args.sequences:
+    for name in protocol_names(args.sequences):
         _dataset, train_takes, _validation, test_take, frames = PROTOCOLS[name]
         key = jax.random.key(0)
         sequences = load_protocol_takes(parser, folders, name, [*train_takes, test_take])

@@ -20,7 +20,7 @@ import argparse
 import itertools
 
 from bench_output import write_json
-from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes
+from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, protocol_names
 
 
 def arc_statistics(latent, starts):
@@ -56,7 +56,8 @@ def main():
     rows, drawn = [], {}
     print("| sequence | latent dim | kind | end gap per take | largest step |")
     print("|---|---:|---|---|---:|")
-    for name in args.sequences:
+    names = protocol_names(args.sequences)
+    for name in names:
         train_takes = PROTOCOLS[name][1]
         key = jax.random.key(0)
         train = [sequence_poses(s, t, key=key) for t, s in load_protocol_takes(parser, folders, name, train_takes).items()]
@@ -70,7 +71,7 @@ def main():
                              "end_gap_median_steps": gaps, "largest_step_median_steps": largest,
                              "objective": float(model.objective())})
                 write_json(rows, args.json)
-                if args.figure and name == args.sequences[0] and latent_dim == 2:
+                if args.figure and name == names[0] and latent_dim == 2:
                     drawn[kind] = (latent, starts, train_takes)
     if args.figure and drawn:
         import matplotlib
@@ -83,7 +84,7 @@ def main():
             for (a, b), take in zip(itertools.pairwise(starts), takes):
                 line, = ax.plot(latent[a:b, 0], latent[a:b, 1], ".-", ms=3, lw=0.8, label=take)
                 ax.plot(*latent[b - 1, :2], "x", ms=9, mew=2, color=line.get_color())
-            ax.set_title(f"{kind}, {args.sequences[0]} training takes (x: each take's end)")
+            ax.set_title(f"{kind}, {names[0]} training takes (x: each take's end)")
             ax.set_xlabel("latent 1")
             ax.set_ylabel("latent 2")
             ax.legend(fontsize=8)

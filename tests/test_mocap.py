@@ -230,6 +230,18 @@ def test_ik_round_trip_recovers_the_pose():
     assert float(result.skeleton.limit_violation(result.pose).max()) == 0.0
 
 
+def test_ik_fits_in_float64_whether_or_not_x64_is_on():
+    # The Gauss-Newton tolerances need float64: the fit runs in it and returns the dtype asked for.
+    motion = generate_motion("jog", "S1", num_frames=12, fps=60.0, key=jax.random.key(0), dtype=jnp.float64)
+    wide = inverse_kinematics(motion.joints3d, key=jax.random.key(1))
+    with jax.enable_x64(False):
+        narrow = inverse_kinematics(np.asarray(motion.joints3d), key=jax.random.key(1))
+        assert narrow.pose.dtype == jnp.float32 and narrow.skeleton.offsets.dtype == jnp.float32
+    assert wide.pose.dtype == jnp.float64
+    np.testing.assert_allclose(np.asarray(narrow.pose), np.asarray(wide.pose), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(narrow.residual_mm), np.asarray(wide.residual_mm), atol=1e-3)
+
+
 def test_ik_and_mapping_errors():
     with pytest.raises(ValueError, match=r"\(T, 15, 3\)"):
         inverse_kinematics(np.zeros((4, 14, 3)), restarts=0)
@@ -318,6 +330,20 @@ def test_bandai_walk_and_run(shared_data):
         _check_ik(retarget_positions(m.positions, m.joint_names)[:60], jax.random.key(i)) for i, m in enumerate((walk, run))
     ]
     print(f"Bandai IK residual: walk {residuals[0]:.1f} mm, run {residuals[1]:.1f} mm")
+
+
+def test_bandai_run_first_frame_is_upright_without_x64(shared_data):
+    # In float32 this take's first frame landed at a pelvis pitch of 0.81 rad (the spine bent back
+    # to match, 8.6 mm from the joints) and the next frame jumped 0.7 rad out of it.
+    run = load_bvh(os.path.join(shared_data, "bandai_walk_run", "dataset-2_run_normal_006.bvh"))
+    joints = retarget_positions(run.positions, run.joint_names)[:8]
+    with jax.enable_x64(False):
+        result = inverse_kinematics(joints, key=jax.random.key(0))
+    pose = np.asarray(result.pose)
+    pitch, roll = (result.skeleton.dof_index(n) for n in ("root_pitch", "root_roll"))
+    assert abs(pose[0, pitch]) < 0.1 and abs(pose[0, roll]) < 0.3, pose[0, 3:6]
+    assert np.abs(np.diff(pose[:, 3:6], axis=0)).max() < 0.2  # the root turns smoothly from frame 0 on
+    assert float(result.residual_mm.mean()) < 5.0
 
 
 def test_convert_cli_on_real_amc(shared_data, tmp_path):
