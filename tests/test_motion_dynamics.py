@@ -14,6 +14,7 @@ from scipy import stats
 
 from jaxtrack.data import generate_motion
 from jaxtrack.dynamics import (
+    REST_PROBABILITY,
     GPDMLatentDynamics,
     LatentNoiseMixture,
     LatentRandomWalk,
@@ -138,6 +139,42 @@ def test_velocity_log_transition_is_the_proposal_density(getkey):
     np.testing.assert_allclose(dynamics.log_transition(previous, drawn), expected, rtol=1e-12)
     scales = np.asarray(dynamics.noise_scales())
     assert scales.shape == drawn.shape[1:] and np.all(scales[8:14] > 0) and np.all(scales[14:] == 0)
+
+
+def test_velocity_that_may_restart_from_rest(getkey):
+    """With ``rest_probability`` p a particle draws its velocity from ``N(0, acceleration^2)``
+    with probability p, else from its belief: 40000 draws have the mixture's moments and mass
+    near zero, ``log_transition`` is the mixture density written out, and p = 0 draws bit for bit
+    what the belief alone draws."""
+    a, s0 = np.full(6, 0.004), np.full(6, 0.05)
+    make = lambda p: StateVelocity(PoseRandomWalk(jnp.full(8, 0.1)), jnp.asarray(a), jnp.asarray(s0), rest_probability=p)  # noqa: E731
+    plain, mixed = make(0.0), make(0.25)
+    start = plain.init(getkey(), jnp.asarray(circle(1, 0.05, 1.5)[0]), 1)
+    previous = plain.propose(getkey(), start)[0].at[:, :6].add(jnp.asarray([0.04, 0.01, 0.0, 0.02, 0.0, 0.0]))  # a step seen
+    copies = jnp.tile(previous, (40000, 1))
+    key = getkey()
+    _, v, mean, var, _, _ = velocity_entries(mixed, mixed.propose(key, copies)[0])
+    m, s2 = mean[0], var[0]
+    spread = 0.75 * (s2 + m**2) + 0.25 * a**2 - (0.75 * m) ** 2  # the mixture's variance
+    np.testing.assert_array_less(np.abs(v.mean(0) - 0.75 * m), 4 * np.sqrt(spread / 40000))
+    np.testing.assert_allclose(v.var(0), spread, rtol=0.05)
+    near_zero = np.all(np.abs(v) < 4 * a, axis=1).mean()  # the rest component (the belief's mass there is nil)
+    assert abs(near_zero - 0.25) < 0.01, near_zero
+    before = jnp.tile(previous, (5, 1))
+    drawn = mixed.propose(getkey(), before)[0]
+    v, mean, var = (velocity_entries(mixed, drawn)[i] for i in (1, 2, 3))
+    shifted = before[:, :8].at[:, :6].add(heading_to_world(jnp.asarray(v), before[:, 3]))
+    inner = -0.5 * np.sum(((np.asarray(drawn[:, :8]) - np.asarray(shifted)) / 0.1) ** 2, 1)
+    belief = -0.5 * np.sum((v - mean) ** 2 / var + np.log(var), 1)
+    rest = -0.5 * np.sum(v**2 / a**2 + np.log(a**2), 1)
+    expected = inner + np.log(0.75 * np.exp(belief) + 0.25 * np.exp(rest))
+    np.testing.assert_allclose(mixed.log_transition(before, drawn), expected, rtol=1e-10)
+    np.testing.assert_array_equal(make(0.0).propose(key, copies)[0], plain.propose(key, copies)[0])
+    assert fit_root_velocity(circle(20, 0.05, 1.5)).wrap(PoseRandomWalk(jnp.full(8, 0.1))).rest_probability == REST_PROBABILITY
+    with pytest.raises(ValueError, match="rest_probability"):
+        make(1.0)
+    with pytest.raises(ValueError, match="acceleration > 0"):
+        StateVelocity(PoseRandomWalk(jnp.full(8, 0.1)), jnp.zeros(6), jnp.asarray(s0), rest_probability=0.25)
 
 
 def test_each_dynamics_says_which_entries_move(gpdm_prior, walk):
@@ -276,6 +313,7 @@ def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey
     """MALA moves targeting ``log_transition`` alone keep a sample of ``propose`` a sample of it."""
     cases = [
         StateVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03)),
+        StateVelocity(PoseRandomWalk(jnp.full(32, 0.05)), jnp.full(6, 0.01), jnp.full(6, 0.03), rest_probability=0.25),
         fit_gpdm_latent_dynamics(gpdm_prior, walk[45:]),
         # The unfitted GPDM's eq. 28 scales sit at the floor, a ridge no diagonal MALA crosses:
         # moderate scales, the latent draw of the GPDM.

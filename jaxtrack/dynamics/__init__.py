@@ -33,6 +33,7 @@ from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
 from ._random_walk import make_pose_random_walk as make_pose_random_walk
 from ._residual import PoseResidual as PoseResidual
 from ._residual import fit_pose_residual as fit_pose_residual
+from ._velocity import REST_PROBABILITY as REST_PROBABILITY
 from ._velocity import StateVelocity as StateVelocity
 from ._velocity import VelocityFit as VelocityFit
 from ._velocity import fit_root_velocity as fit_root_velocity

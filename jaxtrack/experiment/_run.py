@@ -194,7 +194,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                 moving = tracker.dynamics
                 spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
                            for name in ("acceleration", "initial_speed", "displacement_noise")}
-                results["velocity"][method] = {"entries": moving.size, **spreads}
+                results["velocity"][method] = {"entries": moving.size, "rest_probability": moving.rest_probability, **spreads}
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
             for run, (poses, joints, info, seconds) in enumerate(_runs(tracker, run_roots[method], scene, config)):
                 times.append(seconds)
