@@ -10,7 +10,7 @@ import pytest
 
 from jaxtrack.dynamics import AbstractDynamics, fit_pose_random_walk, gaussian_step
 from jaxtrack.experiment import ExperimentConfig, results_table, run_experiment
-from jaxtrack.filters import SIR, BestParticle
+from jaxtrack.filters import SIR, BestParticle, run_filter
 from jaxtrack.tracking import (
     Budget,
     MotionData,
@@ -304,3 +304,41 @@ def test_tracking_on_sampled_pixels(tmp_path, capsys):
     inputs = ["--train", "walk.npz", "--validation", "walk.npz", "--test", "walk.npz", "--out", str(tmp_path / "out")]
     assert main(["experiment", *inputs, "--pixel-samples", "2"]) == 2
     assert "pixel_samples must be a whole number >= 4" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # 75 s on 2 cores: six trackers compiled, two with and without a residual
+def test_every_paper_tracker_tracking_blind_leaks_no_nans():
+    """Every particle of every paper tracker scores -inf, with each tracker's defaults (the
+    velocity and its rest draws, GPAPF's final layer, LatentPF's latent estimate, the graph
+    walk) and with an off-manifold residual: every frame is reported degenerate, and the
+    estimates, weights and particles stay finite."""
+    from jaxtrack.likelihood import as_likelihood
+    from jaxtrack.tracking import PAPER_TRACKERS, fit_manifold, fit_tracker, motion_data, prepare_test, sequence_poses
+
+    train, validation, test = small_experiment_sequences()
+    key = jax.random.key(0)
+    scene = prepare_test(test[0], "walk", key=key, frames=4)
+    blind = as_likelihood(lambda poses, observation: jnp.full(poses.shape[0], -jnp.inf, poses.dtype))
+    train_poses = [sequence_poses(s, "train", key=key) for s in train]
+    validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
+    motions = {}
+    for name in PAPER_TRACKERS:
+        recipe = get_tracker(name)
+        spec = (recipe.manifold, recipe.latent_dim) if recipe.needs_manifold else None
+        if spec not in motions:
+            model, starts = None, None
+            if spec is not None:
+                model, _, starts = fit_manifold(train_poses, spec[1], 5, kind=spec[0])
+            motions[spec] = motion_data(train_poses, validation_poses, model, starts)
+        fitted = fit_tracker(recipe, key, motions[spec])
+        residuals = (0.0, 1.0) if name in ("latentpf", "glegbpf") else (0.0,)
+        for residual in residuals:
+            tracker = build_tracker(recipe, fitted, blind, Budget(40, 2), velocity_from=validation_poses if recipe.velocity else None,
+                                    residual_from=validation_poses, residual_scale=residual)
+            state, info = run_filter(tracker, jax.random.key(1), scene.initial_pose, scene.observations)
+            label = f"{name}, residual {residual}"
+            assert bool(np.all(np.asarray(info.degenerate))), label
+            for leaf in (info.estimate, info.ess, *jax.tree.leaves(state)):
+                if jnp.issubdtype(jnp.asarray(leaf).dtype, jnp.floating):
+                    assert not np.any(np.isnan(np.asarray(leaf))), label
+            assert np.all(np.isfinite(np.asarray(info.estimate))), label
