@@ -96,8 +96,10 @@ def load(folders, take, parser, crop=None):
 
 
 def plot_latent_spaces(folders, parser, path, train_frames):
-    """LE and GLE of the two combo training sets, coloured by take (subject and activity) and by
-    gait phase."""
+    """LE, temporal LE and GLE of the two combo training sets, coloured by take (subject and
+    activity) and by gait phase. Temporal LE refuses several takes at once (its graph has one
+    piece per take), so it is fitted on each take alone and each take's embedding is drawn in
+    its own box, side by side: nothing places one take's frames beside another's."""
     import jax
     import matplotlib
 
@@ -111,7 +113,7 @@ def plot_latent_spaces(folders, parser, path, train_frames):
 
     jax.config.update("jax_enable_x64", True)
     names = ["combo-bandai-to-cmu", "combo-cmu-to-bandai"]
-    fig, axes = plt.subplots(2, 4, figsize=(15, 7.2))
+    fig, axes = plt.subplots(2, 6, figsize=(22, 7.2))
     for row, name in enumerate(names):
         takes = PROTOCOLS[name][0]
         sequences = [joint_angles(np.asarray(load(folders, t, parser, train_frames).pose)) for t in takes]
@@ -122,9 +124,17 @@ def plot_latent_spaces(folders, parser, path, train_frames):
         Y = (Y - Y.mean(0)) / (Y.std(0) + 1e-8)
         _, _, vt = np.linalg.svd(Y, full_matrices=False)
         phase = np.arctan2(Y @ vt[1], Y @ vt[0])
-        for column, graph in enumerate(["le", "gle"]):
+        for column, graph in enumerate(["le", "tle", "gle"]):
             label = graph.upper()
-            if graph == "le":  # k nearest neighbours in pose space: walks and runs may be two pieces at small k
+            if graph == "tle":  # one embedding per take, each scaled into its own unit box, side by side
+                boxes = []
+                for i, angles in enumerate(sequences):
+                    own = np.asarray(fit_spectral([angles], "tle").latent)[:, :2]
+                    own = (own - own.min(0)) / (np.ptp(own, axis=0) + 1e-12)
+                    boxes.append(own + np.array([1.25 * i, 0.0]))
+                Z = np.concatenate(boxes)
+                label = "TLE, each take alone"
+            elif graph == "le":  # k nearest neighbours in pose space: walks and runs may be two pieces at small k
                 for k in (10, 20, 40, 80):
                     try:
                         model = fit_spectral(sequences, "le", k=k)
@@ -132,18 +142,20 @@ def plot_latent_spaces(folders, parser, path, train_frames):
                     except ConfigurationError as err:
                         print(f"{name}: LE with k = {k}: {str(err).split(';')[0]}")
                 label = f"LE (k = {k})"
+                Z = np.asarray(model.latent)
             else:
-                model = fit_spectral(sequences, graph)
-            Z = np.asarray(model.latent)
+                Z = np.asarray(fit_spectral(sequences, graph).latent)
             ax = axes[row, 2 * column]
             for i, take in enumerate(takes):
                 ax.scatter(Z[owner == i, 0], Z[owner == i, 1], s=3, label=f"{take[0]} {take[1]}")
-            ax.set_title(f"{label}, {name.split('-')[1]} training: by take", fontsize=9)
+            ax.set_title(f"{label}, {name.split('-')[1]} takes", fontsize=9)
             ax.legend(fontsize=6, markerscale=3)
             ax = axes[row, 2 * column + 1]
             points = ax.scatter(Z[:, 0], Z[:, 1], s=3, c=phase, cmap="twilight")
-            ax.set_title(f"{label}: by gait phase (angle in the poses' PC1-PC2 plane)", fontsize=9)
+            ax.set_title(f"{label}: by gait phase", fontsize=9)
             fig.colorbar(points, ax=ax, fraction=0.046)
+    fig.suptitle("Latent spaces of the combo training sets, coloured by take and by gait phase (each pose's angle in the "
+                 "plane of the poses' first two principal components)", fontsize=10)
     for ax in axes.ravel():
         ax.set_xlabel("latent 1", fontsize=8)
         ax.set_ylabel("latent 2", fontsize=8)
