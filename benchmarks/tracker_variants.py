@@ -14,6 +14,10 @@ protocol (every option of that script applies):
 - ``mrpf-mixture``, ``gpapf-mixture``, ``latentpf-mixture``: the tracker with its GPDM latent
   noise refitted on the validation motion (``latent_noise="validation"``: a scale mixture of
   the GPDM's predictive sd, ``jaxtrack.dynamics._latent_noise``), everything else its own.
+- ``apf-partitioned``, ``gpapf-partitioned``: hierarchical partitioned annealing (Deutscher and
+  Reid; ``APF(partitions=...)``), the schedule set before any measurement. APF's layers after
+  the transition perturb the root and the spine, then the legs, then the arms and the neck,
+  then everything; GPAPF's, the global entries, then the latent point, then both.
 
     taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
@@ -30,6 +34,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
 from jaxtrack.likelihood import AbstractLikelihood
@@ -97,6 +102,36 @@ class SIRWithFinalLayer(AbstractFilter):
         return state, eqx.tree_at(lambda i: i.estimate, info, WeightedMean()(weights, refined, self.final))
 
 
+POSE_PARTS = {  # the pose's entries by part: 3 root positions, then the skeleton's angles
+    "root": ("x", "y", "z", "root_yaw", "root_pitch", "root_roll", "spine_flex", "spine_bend", "spine_twist"),
+    "legs": ("lhip_flex", "lhip_abd", "lhip_twist", "lknee_flex", "rhip_flex", "rhip_abd", "rhip_twist", "rknee_flex"),
+    "arms": ("lclavicle_elev", "lclavicle_prot", "lshoulder_flex", "lshoulder_abd", "lshoulder_twist", "lelbow_flex",
+             "rclavicle_elev", "rclavicle_prot", "rshoulder_flex", "rshoulder_abd", "rshoulder_twist", "relbow_flex",
+             "neck_flex", "neck_bend", "neck_twist"),
+}
+
+
+def _pose_partitions(layers):
+    """APF's partitions for ``layers`` layers: root and spine, legs, arms and neck, then all."""
+    names = ("x", "y", "z", *humaneva_skeleton().dof_names)
+    parts = [tuple(names.index(n) for n in POSE_PARTS[p]) for p in ("root", "legs", "arms")]
+    schedule = [*parts, tuple(range(len(names)))]
+    return tuple(schedule[min(m, len(schedule) - 1)] for m in range(layers - 1))
+
+
+def _build_apf_partitioned(dynamics, likelihood, budget):
+    return APF(dynamics, likelihood, budget.per_layer, budget.layers, partitions=_pose_partitions(budget.layers))
+
+
+def _build_gpapf_partitioned(fitted, likelihood, budget):
+    latent, final = fitted
+    width = GLOBAL_DOFS + latent.manifold.latent_dim
+    schedule = [tuple(range(GLOBAL_DOFS)), tuple(range(GLOBAL_DOFS, width)), tuple(range(width))]
+    layers = budget.layers - 1
+    return APF(latent, likelihood, budget.per_layer, layers, final_layer=final, estimator=ProjectedMean(latent.manifold),
+               partitions=tuple(schedule[min(m, 2)] for m in range(layers - 1)))
+
+
 def _build_final100(fitted, likelihood, budget):
     dynamics, final = fitted
     return SIRWithFinalLayer(dynamics, likelihood, final, budget.evaluations - FINAL_PARTICLES, FINAL_PARTICLES)
@@ -126,6 +161,10 @@ MRPF_DIM = get_tracker("mrpf").latent_dim  # each variant on its base tracker's 
 LATENT_DIM = get_tracker("latentpf").latent_dim
 
 VARIANTS = [
+    dataclasses.replace(get_tracker("apf"), name="apf-partitioned", label="APF+partitioned", build=_build_apf_partitioned,
+                        description="APF with hierarchical partitioned annealing"),
+    dataclasses.replace(get_tracker("gpapf"), name="gpapf-partitioned", label="GPAPF+partitioned", build=_build_gpapf_partitioned,
+                        description="GPAPF with partitioned annealing: the global entries, then the latent point"),
     _mixture("mrpf", _mrpf_mixture),
     _mixture("gpapf", _gpapf_mixture),
     _mixture("latentpf", _latent_mixture),

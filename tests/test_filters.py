@@ -144,6 +144,35 @@ def test_apf_anneals_to_the_survival_target_and_tracks(getkey):
     assert np.abs(np.asarray(info.estimate) - np.asarray(ys)).mean() < 0.1
 
 
+def test_partitioned_annealing_moves_each_layers_entries_only(getkey):
+    """Partitions naming every entry in every layer are plain annealing, bit for bit; with a flat
+    likelihood (weights equal, resampling a random permutation in distribution) a layer that
+    perturbs entry 0 alone adds its shrunk variance to entry 0 and nothing to entry 1."""
+    _, ys = linear_gaussian_data(getkey(), frames=6)
+    key = getkey()
+    plain = make_apf(gaussian_likelihood, Q, 100, num_layers=3, dtype=jnp.float64)
+    every = make_apf(gaussian_likelihood, Q, 100, num_layers=3, partitions=((0, 1), (1, 0)), dtype=jnp.float64)
+    a, b = run_filter(plain, key, jnp.zeros(2), ys), run_filter(every, key, jnp.zeros(2), ys)
+    np.testing.assert_array_equal(a[1].estimate, b[1].estimate)
+    np.testing.assert_array_equal(a[0].particles, b[0].particles)
+
+    flat = lambda poses, y: jnp.zeros(poses.shape[0], poses.dtype)  # noqa: E731
+    first_only = make_apf(flat, Q, 40000, num_layers=2, fixed_betas=(1.0, 1.0), partitions=((0,),), dtype=jnp.float64)
+    state, _ = run_filter(first_only, getkey(), jnp.zeros(2), jnp.zeros((1, 2)))
+    variance = np.var(np.asarray(state.particles), axis=0)
+    np.testing.assert_allclose(variance, [Q[0] ** 2 * (1 + 0.5), Q[1] ** 2], rtol=0.05)  # decay 0.5: layer 1's variance is half
+
+
+def test_partitions_are_checked_before_tracking():
+    with pytest.raises(ValueError, match="partitions has 1 entries for the 2 layers after the first"):
+        make_apf(gaussian_likelihood, Q, 10, num_layers=3, partitions=((0,),))
+    with pytest.raises(ValueError, match=r"partitions\[0\] \(layer 1\) must be distinct non-negative state indices"):
+        make_apf(gaussian_likelihood, Q, 10, num_layers=2, partitions=((0, 0),))
+    with pytest.raises(ValueError, match="partitions name state entry 2, but the state has 2 entries"):
+        run_filter(make_apf(gaussian_likelihood, Q, 10, num_layers=2, partitions=((2,),)), jax.random.key(0), jnp.zeros(2),
+                   jnp.zeros((3, 2)))
+
+
 def test_apf_final_layer_is_a_layer_after_the_annealing_and_traces_the_likelihood_once(getkey):
     """The final full-pose layer (001 Alg. 3), run inside the annealing scan, equals the APF
     without it followed by one ``smc_layer`` of the final dynamics on the annealed particles'

@@ -2,7 +2,9 @@
 the optional final full-pose layer of the improved GPAPF (001 Alg. 3).
 
 Layer 0 propagates by the dynamics; layers 1..M-1 perturb the particles with the dynamics'
-noise shrunk by ``variance_decay^(m/2)`` (one ``lax.scan`` over the layers). Each layer is one ``smc_layer`` whose exponent
+noise shrunk by ``variance_decay^(m/2)`` (one ``lax.scan`` over the layers), each layer all the
+state's entries or, with ``partitions``, only its own (Deutscher and Reid's hierarchical
+partitioned annealing: the root, then the torso, then the limbs). Each layer is one ``smc_layer`` whose exponent
 ``beta_m`` is chosen so that about ``survival_target`` of the particles survive
 (``fixed_betas`` overrides it). With the latent random walk this is GPAPF (001 Alg. 2).
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..dynamics import AbstractDynamics
 from ..likelihood import AbstractLikelihood
@@ -42,6 +45,9 @@ class APF(AbstractFilter):
             poses of the annealed particles, weights them (beta chosen for the survival target)
             and gives the estimate, their weighted mean; the annealed particles are what the
             next frame starts from.
+        partitions: for layers 1..M-1 in turn, the state entries each layer perturbs (M - 1
+            tuples of indices; the other entries keep their values), or None: every entry in
+            every layer. Layer 0, the transition, always moves the whole state.
         resampler, estimator: as for ``SIR``.
         refine: gradient-refined moves after the annealing layers and before the final layer
             (``LangevinRefinement``), targeting the untempered posterior given each particle's
@@ -56,6 +62,7 @@ class APF(AbstractFilter):
     variance_decay: float = eqx.field(static=True, default=0.5)
     fixed_betas: tuple | None = eqx.field(static=True, default=None)
     final_layer: AbstractDynamics | None = None
+    partitions: tuple[tuple[int, ...], ...] | None = eqx.field(static=True, default=None)
     resampler: str = eqx.field(static=True, default="systematic")
     estimator: AbstractEstimator = WeightedMean()
     refine: LangevinRefinement | None = None
@@ -70,9 +77,12 @@ class APF(AbstractFilter):
             raise TypeError(f"final_layer must be an AbstractDynamics or None, got {type(self.final_layer).__name__}")
         if not 0.0 < self.variance_decay <= 1.0:
             raise ValueError(f"variance_decay must be in (0, 1], got {self.variance_decay}")
+        check_partitions(self.partitions, self.num_layers)
 
     def init(self, key, initial_pose) -> FilterState:
         particles = self.dynamics.init(key, initial_pose, self.num_particles)
+        if self.partitions is not None:
+            partition_masks(self.partitions, particles.shape[1])  # an entry past the state's end is refused here
         return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
 
     def _temper(self, layer):
@@ -90,9 +100,14 @@ class APF(AbstractFilter):
         def anneal_move(k, x, m):
             # Layer 0 is the transition, later layers perturb (one layer body, chosen by lax.cond).
             factor = self.variance_decay ** (0.5 * m.astype(x.dtype))
-            return jax.lax.cond(
-                m == 0, lambda: dynamics.propose(k, x), lambda: (dynamics.perturb(k, x, factor), jnp.zeros(x.shape[0], x.dtype))
-            )
+
+            def perturb():
+                moved = dynamics.perturb(k, x, factor)
+                if self.partitions is not None:
+                    moved = jnp.where(partition_masks(self.partitions, x.shape[1])[m], moved, x)
+                return moved, jnp.zeros(x.shape[0], x.dtype)
+
+            return jax.lax.cond(m == 0, lambda: dynamics.propose(k, x), perturb)
 
         def layer(carry, xs):
             """One SMC layer (as ``smc_layer``): an annealing layer (m < M) or the final full-pose
@@ -162,3 +177,27 @@ class APF(AbstractFilter):
         )
         return FilterState(particles, log_weights), info
 
+
+
+def check_partitions(partitions, num_layers: int) -> None:
+    """Validate APF's ``partitions`` (one non-empty tuple of distinct non-negative state indices
+    per layer after the first); raises ``ValueError``."""
+    if partitions is None:
+        return
+    if len(partitions) != num_layers - 1:
+        raise ValueError(f"partitions has {len(partitions)} entries for the {num_layers - 1} layers after the first")
+    for layer, entries in enumerate(partitions, start=1):
+        if not entries or len(set(entries)) != len(entries) or any(not isinstance(i, int) or i < 0 for i in entries):
+            raise ValueError(f"partitions[{layer - 1}] (layer {layer}) must be distinct non-negative state indices, got {entries!r}")
+
+
+def partition_masks(partitions, state_dim: int):
+    """(M, S) boolean masks of the entries each layer moves (row 0, the transition: all)."""
+    largest = max(max(entries) for entries in partitions)
+    if largest >= state_dim:
+        raise ValueError(f"partitions name state entry {largest}, but the state has {state_dim} entries")
+    masks = np.zeros((len(partitions) + 1, state_dim), bool)
+    masks[0] = True
+    for layer, entries in enumerate(partitions, start=1):
+        masks[layer, list(entries)] = True
+    return jnp.asarray(masks)
