@@ -18,6 +18,11 @@ protocol (every option of that script applies):
   Reid; ``APF(partitions=...)``), the schedule set before any measurement. APF's layers after
   the transition perturb the root and the spine, then the legs, then the arms and the neck,
   then everything; GPAPF's, the global entries, then the latent point, then both.
+- ``apf-coarse``, ``gpapf-coarse``: coarse-to-fine annealing (``APF(coarse_likelihood=...,
+  coarse_layers=...)`` with ``likelihood.coarsen_likelihood``), the schedule set before any
+  measurement: the first half of the annealing layers (rounded down: 2 of APF's 5, 2 of
+  GPAPF's 4) score the silhouettes at half the resolution (40x30 for 80x60), the rest, and
+  GPAPF's final layer, at the full one. A coarse evaluation is counted as a full one.
 
     taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
@@ -37,7 +42,7 @@ import jax.numpy as jnp
 from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
-from jaxtrack.likelihood import AbstractLikelihood
+from jaxtrack.likelihood import AbstractLikelihood, coarsen_likelihood
 from jaxtrack.tracking import TrackerRecipe, get_tracker, register_tracker
 
 FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
@@ -132,6 +137,21 @@ def _build_gpapf_partitioned(fitted, likelihood, budget):
                partitions=tuple(schedule[min(m, 2)] for m in range(layers - 1)))
 
 
+COARSE_FACTOR = 2  # the coarse layers' images: half the width and height
+
+
+def _build_apf_coarse(dynamics, likelihood, budget):
+    return APF(dynamics, likelihood, budget.per_layer, budget.layers, coarse_likelihood=coarsen_likelihood(likelihood, COARSE_FACTOR),
+               coarse_layers=budget.layers // 2)
+
+
+def _build_gpapf_coarse(fitted, likelihood, budget):
+    latent, final = fitted
+    layers = budget.layers - 1
+    return APF(latent, likelihood, budget.per_layer, layers, final_layer=final, estimator=ProjectedMean(latent.manifold),
+               coarse_likelihood=coarsen_likelihood(likelihood, COARSE_FACTOR), coarse_layers=layers // 2)
+
+
 def _build_final100(fitted, likelihood, budget):
     dynamics, final = fitted
     return SIRWithFinalLayer(dynamics, likelihood, final, budget.evaluations - FINAL_PARTICLES, FINAL_PARTICLES)
@@ -165,6 +185,10 @@ VARIANTS = [
                         description="APF with hierarchical partitioned annealing"),
     dataclasses.replace(get_tracker("gpapf"), name="gpapf-partitioned", label="GPAPF+partitioned", build=_build_gpapf_partitioned,
                         description="GPAPF with partitioned annealing: the global entries, then the latent point"),
+    dataclasses.replace(get_tracker("apf"), name="apf-coarse", label="APF+coarse", build=_build_apf_coarse,
+                        description="APF, its first half of the layers on silhouettes at half the resolution"),
+    dataclasses.replace(get_tracker("gpapf"), name="gpapf-coarse", label="GPAPF+coarse", build=_build_gpapf_coarse,
+                        description="GPAPF, its first half of the annealing layers at half the resolution"),
     _mixture("mrpf", _mrpf_mixture),
     _mixture("gpapf", _gpapf_mixture),
     _mixture("latentpf", _latent_mixture),

@@ -173,6 +173,49 @@ def test_partitions_are_checked_before_tracking():
                    jnp.zeros((3, 2)))
 
 
+def shifted_likelihood(poses, y):
+    """A second Gaussian likelihood (the observation read 0.5 higher), standing in for a coarse level."""
+    return gaussian_likelihood(poses, y + 0.5)
+
+
+def test_coarse_to_fine_layers_score_with_the_coarse_likelihood(getkey):
+    """Coarse-to-fine annealing: a coarse likelihood equal to the fine one is plain annealing, bit
+    for bit; every layer coarse is plain annealing on the coarse likelihood, bit for bit; and with
+    the first layer coarse the last layer's weights are the fine likelihood's, tempered."""
+    from jaxtrack.likelihood import FunctionLikelihood
+
+    _, ys = linear_gaussian_data(getkey(), frames=5)
+    key = getkey()
+    fine, coarse = FunctionLikelihood(gaussian_likelihood), FunctionLikelihood(shifted_likelihood)
+    plain = make_apf(gaussian_likelihood, Q, 200, num_layers=3, dtype=jnp.float64)
+    on_coarse = make_apf(shifted_likelihood, Q, 200, num_layers=3, dtype=jnp.float64)
+    same = make_apf(gaussian_likelihood, Q, 200, num_layers=3, coarse_likelihood=fine, coarse_layers=2, dtype=jnp.float64)
+    all_coarse = make_apf(gaussian_likelihood, Q, 200, num_layers=3, coarse_likelihood=coarse, coarse_layers=3, dtype=jnp.float64)
+    for a, b in ((plain, same), (on_coarse, all_coarse)):
+        (state_a, info_a), (state_b, info_b) = run_filter(a, key, jnp.zeros(2), ys), run_filter(b, key, jnp.zeros(2), ys)
+        np.testing.assert_array_equal(info_a.estimate, info_b.estimate)
+        np.testing.assert_array_equal(state_a.particles, state_b.particles)
+
+    first_coarse = make_apf(gaussian_likelihood, Q, 200, num_layers=3, coarse_likelihood=coarse, coarse_layers=1, dtype=jnp.float64)
+    state, info = run_filter(first_coarse, key, jnp.zeros(2), ys)
+    weights = np.asarray(state.log_weights) - np.logaddexp.reduce(np.asarray(state.log_weights))
+    expected = float(info.betas[-1, -1]) * np.asarray(gaussian_likelihood(state.particles, ys[-1]))
+    np.testing.assert_allclose(weights, expected - np.logaddexp.reduce(expected), atol=1e-9)
+    assert not np.allclose(np.asarray(info.estimate), np.asarray(run_filter(plain, key, jnp.zeros(2), ys)[1].estimate))
+
+
+def test_coarse_layers_are_checked_before_tracking():
+    from jaxtrack.likelihood import FunctionLikelihood
+
+    with pytest.raises(ValueError, match=r"coarse_layers must be an integer in \[0, 3\]"):
+        make_apf(gaussian_likelihood, Q, 10, num_layers=3, coarse_likelihood=FunctionLikelihood(gaussian_likelihood),
+                 coarse_layers=4)
+    with pytest.raises(ValueError, match="coarse_layers=1 needs a coarse_likelihood"):
+        make_apf(gaussian_likelihood, Q, 10, num_layers=3, coarse_layers=1)
+    with pytest.raises(TypeError, match="coarse_likelihood"):  # the type check, or check_coarse_layers without it
+        make_apf(gaussian_likelihood, Q, 10, num_layers=3, coarse_likelihood=gaussian_likelihood, coarse_layers=1)
+
+
 def test_apf_final_layer_is_a_layer_after_the_annealing_and_traces_the_likelihood_once(getkey):
     """The final full-pose layer (001 Alg. 3), run inside the annealing scan, equals the APF
     without it followed by one ``smc_layer`` of the final dynamics on the annealed particles'

@@ -259,3 +259,33 @@ def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
     bias = cost_coarse - cost_fine
     assert abs(float(bias.mean())) < 0.05 and float(bias.std()) < 0.03, (bias.mean(), bias.std())
     assert np.corrcoef(cost_coarse, cost_fine)[0, 1] > 0.97
+
+
+def test_coarse_likelihood_scores_the_block_averaged_silhouettes_on_resized_cameras(scene, getkey):
+    """``coarsen_likelihood``: factor 1 is the likelihood itself (to rounding); factor 2 equals the
+    silhouette likelihood of the half-size rig on the silhouettes ``jaxtrack.image`` downsamples
+    (the same block average and threshold), its window shrunk with the image; bad factors and a likelihood
+    that is not the silhouette one are refused."""
+    from jaxtrack.image import downsample_silhouettes
+    from jaxtrack.likelihood import FunctionLikelihood, coarsen_likelihood
+
+    motion, rig, _seq, observed = scene
+    fine_rig = rig.resized(80, 60)
+    observed = jnp.asarray(downsample_silhouettes(np.kron(np.asarray(observed[:, 0]), np.ones((2, 2))), 80, 60), jnp.float64)
+    poses = jnp.asarray(motion.pose[:1]) + 0.05 * jax.random.normal(getkey(), (16, 32))
+    score = eqx.filter_jit(lambda lik, p, o: lik(p, o))
+    fine = make_silhouette_likelihood(motion.body, fine_rig, window=None)
+    np.testing.assert_allclose(score(coarsen_likelihood(fine, 1), poses, observed), score(fine, poses, observed), rtol=1e-12)
+    half = jnp.asarray(downsample_silhouettes(np.asarray(observed), 40, 30), jnp.float64)
+    reference = make_silhouette_likelihood(motion.body, fine_rig.resized(40, 30), window=None)
+    coarse = coarsen_likelihood(make_silhouette_likelihood(motion.body, fine_rig, window=(40, 24)), 2)
+    assert coarse.coarse.rig.image_size[0] == (40, 30) and coarse.coarse.window == (21, 13)
+    np.testing.assert_allclose(score(coarse, poses, observed), score(reference, poses, half), rtol=1e-10)
+    with pytest.raises(ValueError, match="a factor of 3x3 does not divide the 80x60 images"):
+        coarsen_likelihood(fine, 3)
+    with pytest.raises(ValueError, match="factor must be a positive integer"):
+        coarsen_likelihood(fine, 0)
+    with pytest.raises(TypeError, match="coarse-to-fine needs a SilhouetteLikelihood"):
+        coarsen_likelihood(FunctionLikelihood(lambda p, o: jnp.zeros(p.shape[0])), 2)
+    with pytest.raises(ValueError, match="observed silhouettes are 40x30; this coarse likelihood expects 80x60"):
+        coarse(poses, half)

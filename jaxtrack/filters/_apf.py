@@ -7,6 +7,9 @@ state's entries or, with ``partitions``, only its own (Deutscher and Reid's hier
 partitioned annealing: the root, then the torso, then the limbs). Each layer is one ``smc_layer`` whose exponent
 ``beta_m`` is chosen so that about ``survival_target`` of the particles survive
 (``fixed_betas`` overrides it). With the latent random walk this is GPAPF (001 Alg. 2).
+With ``coarse_likelihood`` the first ``coarse_layers`` layers score with it instead
+(coarse-to-fine annealing: e.g. ``likelihood.coarsen_likelihood``, the silhouettes at half the
+resolution); the later layers, the final layer and the refinement score with ``likelihood``.
 """
 
 from __future__ import annotations
@@ -48,6 +51,9 @@ class APF(AbstractFilter):
         partitions: for layers 1..M-1 in turn, the state entries each layer perturbs (M - 1
             tuples of indices; the other entries keep their values), or None: every entry in
             every layer. Layer 0, the transition, always moves the whole state.
+        coarse_likelihood: the likelihood of layers 0..coarse_layers-1 (the same observation is
+            passed to it), or None.
+        coarse_layers: how many leading layers score with ``coarse_likelihood`` (0: none).
         resampler, estimator: as for ``SIR``.
         refine: gradient-refined moves after the annealing layers and before the final layer
             (``LangevinRefinement``), targeting the untempered posterior given each particle's
@@ -63,6 +69,8 @@ class APF(AbstractFilter):
     fixed_betas: tuple | None = eqx.field(static=True, default=None)
     final_layer: AbstractDynamics | None = None
     partitions: tuple[tuple[int, ...], ...] | None = eqx.field(static=True, default=None)
+    coarse_likelihood: AbstractLikelihood | None = None
+    coarse_layers: int = eqx.field(static=True, default=0)
     resampler: str = eqx.field(static=True, default="systematic")
     estimator: AbstractEstimator = WeightedMean()
     refine: LangevinRefinement | None = None
@@ -78,6 +86,7 @@ class APF(AbstractFilter):
         if not 0.0 < self.variance_decay <= 1.0:
             raise ValueError(f"variance_decay must be in (0, 1], got {self.variance_decay}")
         check_partitions(self.partitions, self.num_layers)
+        check_coarse_layers(self.coarse_likelihood, self.coarse_layers, self.num_layers)
 
     def init(self, key, initial_pose) -> FilterState:
         particles = self.dynamics.init(key, initial_pose, self.num_particles)
@@ -90,6 +99,13 @@ class APF(AbstractFilter):
             betas = self.fixed_betas
             return lambda log_lik: jnp.asarray(betas, log_lik.dtype)[layer]
         return lambda log_lik: choose_beta(log_lik, self.survival_target)
+
+    def _score(self, m, poses, observation):
+        """Layer m's log-likelihoods: the coarse likelihood's for m < coarse_layers."""
+        if self.coarse_layers == 0:
+            return self.likelihood(poses, observation)
+        return jax.lax.cond(m < self.coarse_layers, lambda: self.coarse_likelihood(poses, observation),
+                            lambda: self.likelihood(poses, observation))
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         anneal_key, final_key = jax.random.split(key) if self.final_layer is not None else (key, None)
@@ -133,7 +149,7 @@ class APF(AbstractFilter):
                     return states, poses, poses, correction
 
                 moved, final_states, poses, correction = jax.lax.cond(is_final, final_move, annealing_move)
-            log_lik = self.likelihood(poses, observation)
+            log_lik = self._score(m, poses, observation)
             check_layer_shapes(particles, moved, correction, log_lik)
             if final is None:
                 temper = self._temper(m)
@@ -189,6 +205,16 @@ def check_partitions(partitions, num_layers: int) -> None:
     for layer, entries in enumerate(partitions, start=1):
         if not entries or len(set(entries)) != len(entries) or any(not isinstance(i, int) or i < 0 for i in entries):
             raise ValueError(f"partitions[{layer - 1}] (layer {layer}) must be distinct non-negative state indices, got {entries!r}")
+
+
+def check_coarse_layers(coarse_likelihood, coarse_layers, num_layers: int) -> None:
+    """Validate APF's coarse-to-fine settings; raises ``ValueError`` or ``TypeError``."""
+    if isinstance(coarse_layers, bool) or not isinstance(coarse_layers, int) or not 0 <= coarse_layers <= num_layers:
+        raise ValueError(f"coarse_layers must be an integer in [0, {num_layers}] (the annealing layers), got {coarse_layers!r}")
+    if coarse_layers > 0 and coarse_likelihood is None:
+        raise ValueError(f"coarse_layers={coarse_layers} needs a coarse_likelihood")
+    if coarse_likelihood is not None and not isinstance(coarse_likelihood, AbstractLikelihood):
+        raise TypeError(f"coarse_likelihood must be an AbstractLikelihood or None, got {type(coarse_likelihood).__name__}")
 
 
 def partition_masks(partitions, state_dim: int):

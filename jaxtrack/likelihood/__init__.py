@@ -1,5 +1,6 @@
 """Observation likelihoods behind one interface (``AbstractLikelihood``): the bidirectional
-silhouette likelihood of paper 000 eq. 12, sums of likelihoods, and plain functions."""
+silhouette likelihood of paper 000 eq. 12 (dense, windowed, on sampled pixels, or at a coarser
+resolution), sums of likelihoods, and plain functions."""
 
 from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
@@ -7,6 +8,9 @@ from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
 from ._calibration import ShapeCalibration as ShapeCalibration
 from ._calibration import calibrate_shape as calibrate_shape
+from ._coarse import CoarseSilhouetteLikelihood as CoarseSilhouetteLikelihood
+from ._coarse import block_downsample as block_downsample
+from ._coarse import coarsen_likelihood as coarsen_likelihood
 from ._sampled import PixelSample as PixelSample
 from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
 from ._sampled import default_band as default_band
