@@ -438,6 +438,49 @@ def test_transition_scales_recover_the_generating_ones(getkey):
             assert float(objective(at.at[i].add(step))) < float(objective(at))
 
 
+def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
+    """Angles 0 and 2 drawn with the same eq. 28 scales and tied: the fit recovers that pair once
+    for both and angle 1's own; it scores at least the untied fit's scales pooled per group.
+    ``mirrored_groups`` pairs the HumanEva skeleton's left and right angles; MRPF's fit ties
+    them, and bad groups are refused."""
+    from jaxtrack.body import humaneva_skeleton, mirrored_groups
+    from jaxtrack.dynamics import fit_mrpf_transition, fit_transition_scales, transition_log_likelihood
+
+    t, a = 4000, 3
+    s_xx, s_zx = np.array([0.05, 0.02, 0.05]), np.array([0.02, 0.04, 0.02])
+    previous = np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64)) * 0.3
+    mu = previous + 0.1 * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    total = s_xx**2 + s_zx**2
+    mean = (s_zx**2 * previous + s_xx**2 * mu) / total
+    current = mean + np.sqrt(s_xx**2 * s_zx**2 / total) * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    groups = np.array([0, 1, 0])
+    start = np.full(a, 0.03)
+    tied_xx, tied_zx = fit_transition_scales([(previous, current)], [mu[None]], start, start, floor=1e-6, groups=groups)
+    assert tied_xx[0] == tied_xx[2] and tied_zx[0] == tied_zx[2]
+    np.testing.assert_allclose(tied_xx, s_xx, rtol=0.08)
+    np.testing.assert_allclose(tied_zx, s_zx, rtol=0.08)
+    free_xx, free_zx = fit_transition_scales([(previous, current)], [mu[None]], start, start, floor=1e-6)
+    pool = lambda v: np.sqrt(np.array([(v[0] ** 2 + v[2] ** 2) / 2, v[1] ** 2, (v[0] ** 2 + v[2] ** 2) / 2]))  # noqa: E731
+    score = lambda xx, zx: float(transition_log_likelihood(previous, current, mu[None], xx, zx))  # noqa: E731
+    assert score(tied_xx, tied_zx) >= score(pool(free_xx), pool(free_zx)) - 1e-9
+
+    names = humaneva_skeleton().dof_names[3:]
+    mirrored = mirrored_groups(names)
+    assert mirrored.max() + 1 == 16
+    assert mirrored[names.index("lshoulder_flex")] == mirrored[names.index("rshoulder_flex")]
+    assert mirrored[names.index("lknee_flex")] == mirrored[names.index("rknee_flex")]
+    assert len({mirrored[names.index(n)] for n in ("spine_flex", "neck_twist", "lhip_flex")}) == 3
+    prior, poses = walk_prior
+    mrpf = fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored)
+    for left, right in (("lhip_flex", "rhip_flex"), ("lelbow_flex", "relbow_flex")):
+        i, j = names.index(left), names.index(right)
+        assert mrpf.s_zx[i] == mrpf.s_zx[j] and mrpf.s_xx[6 + i] == mrpf.s_xx[6 + j]
+    with pytest.raises(ValueError, match="tied must be 26 integer group ids"):
+        fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored[:5])
+    with pytest.raises(ValueError, match=r"tied must number its groups 0\.\.G-1"):
+        fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored + 1)
+
+
 # ----------------------------------------------------------------------------- the SMC layer and its pieces
 
 def test_smc_layer_weights_are_tempered_likelihood_plus_correction(getkey):

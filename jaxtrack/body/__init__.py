@@ -23,5 +23,6 @@ from ._skeleton import check_poses as check_poses
 from ._skeleton import humaneva_offsets as humaneva_offsets
 from ._skeleton import humaneva_skeleton as humaneva_skeleton
 from ._skeleton import joint_angles as joint_angles
+from ._skeleton import mirrored_groups as mirrored_groups
 from ._skeleton import part_group_indices as part_group_indices
 from ._skeleton import with_offsets as with_offsets

@@ -284,6 +284,24 @@ def part_group_indices(skeleton: Skeleton) -> dict[str, tuple[int, ...]]:
     return {g: tuple(skeleton.joint_index(n) for n in names) for g, names in skeleton.part_groups}
 
 
+def mirrored_groups(names: Sequence[str]) -> np.ndarray:
+    """One group id per name, numbered in order of first appearance; a left entry
+    (``"l" + rest``) and its mirror (``"r" + rest``) share one when both are named, every
+    other name has its own. E.g. the joint angles ``skeleton.dof_names[3:]`` of the HumanEva
+    skeleton give 16 groups for 26 angles (the clavicles, shoulders, elbows, hips and knees
+    paired)."""
+    names = list(names)
+    present = set(names)
+    ids: dict[str, int] = {}
+    groups = []
+    for name in names:
+        side, rest = name[:1], name[1:]
+        mirror = {"l": "r", "r": "l"}.get(side)
+        key = "mirrored:" + rest if mirror is not None and mirror + rest in present else name
+        groups.append(ids.setdefault(key, len(ids)))
+    return np.asarray(groups, dtype=np.int64)
+
+
 def check_joint_names(names: Sequence[str], expected: Sequence[str], what: str) -> None:
     """Raise a clear ``ValueError`` when two joint sets differ."""
     if tuple(names) != tuple(expected):

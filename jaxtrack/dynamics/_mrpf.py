@@ -18,6 +18,11 @@ Fitting (000 sec. 5.2: on a validation set separate from the manifold's training
   infinity; the fitted scales are clipped at 10 times their separate fits.
 - for 000 Alg. 1 as printed ("prior"): ``s_zx`` fitted alone, the RMS of ``x_t - mu(z_t)``,
   with the eq. 29 ``s_xx``.
+
+With ``tied`` groups of joint angles (``body.mirrored_groups``: a left angle and its right
+mirror) each group shares its two scales, fitted on the group's entries together: one
+validation take's left and right limbs estimate one pull between them, where per angle one
+limb's idiosyncrasy in that take sets its pull alone (the experiment's default).
 """
 
 from __future__ import annotations
@@ -181,6 +186,7 @@ def check_latent_proposal(manifold: ManifoldPrior, latent_proposal: str) -> None
 def fit_mrpf_transition(
     manifold: ManifoldPrior, validation, *, key: PRNGKeyArray, proposal: str = "product",
     latent_proposal: str = "back-constraint", samples: int = 64, floor: float = 1e-3, latent_noise: str = "gpdm",
+    tied: ArrayLike | None = None,
 ) -> ManifoldRegularisedTransition:
     """Fit MRPF's scales on validation motion (module docstring).
 
@@ -196,6 +202,9 @@ def fit_mrpf_transition(
         floor: smallest scale, so that no entry is deterministic.
         latent_noise: the GPDM proposal's noise: "gpdm" (its own predictive variance) or
             "validation" (the scale mixture fitted on the validation motion, ``_latent_noise``).
+        tied: (A,) integer group of each joint angle (the pose after its global entries);
+            angles of one group share ``s_xx`` and ``s_zx`` (module docstring), e.g.
+            ``body.mirrored_groups(skeleton.dof_names[3:])``. None: each angle its own.
 
     Returns:
         the fitted ``ManifoldRegularisedTransition`` (in the manifold's dtype).
@@ -206,6 +215,7 @@ def fit_mrpf_transition(
     check_latent_noise_fit(latent_noise)
     sequences = motion_sequences(validation, manifold.pose_dim)
     g = manifold.global_dims
+    groups = check_groups(tied, manifold.pose_dim - g)
     dtype = manifold.training_latent.dtype
     s_xx = rms_step(sequences, floor)
     latent = [np.asarray(manifold.encode(jnp.asarray(s[:, g:], dtype)), np.float64) for s in sequences]
@@ -234,9 +244,11 @@ def fit_mrpf_transition(
         residuals.append((s[1:, g:][None] - mean).reshape(-1, mean.shape[-1]))
         manifold_means.append(mean)
     s_zx_alone = np.maximum(np.sqrt(np.mean(np.square(np.concatenate(residuals)), axis=0)), floor)
+    if tied is not None:
+        s_zx_alone, s_xx = pooled_rms(s_zx_alone, groups), np.concatenate([s_xx[:g], pooled_rms(s_xx[g:], groups)])
     if proposal == "product":
         pairs = [(s[:-1, g:], s[1:, g:]) for s in sequences]
-        s_xx_angles, s_zx = fit_transition_scales(pairs, manifold_means, s_xx[g:], s_zx_alone, floor=floor)
+        s_xx_angles, s_zx = fit_transition_scales(pairs, manifold_means, s_xx[g:], s_zx_alone, floor=floor, groups=groups)
         s_xx = np.concatenate([s_xx[:g], np.minimum(s_xx_angles, 10 * s_xx[g:])])
         s_zx = np.minimum(s_zx, 10 * s_zx_alone)
     else:
@@ -245,6 +257,26 @@ def fit_mrpf_transition(
         manifold=manifold, s_xx=jnp.asarray(s_xx, dtype), s_xz=jnp.asarray(s_xz, dtype), s_zx=jnp.asarray(s_zx, dtype),
         proposal=proposal, latent_proposal=latent_proposal, latent_noise=noise,
     )
+
+
+def check_groups(tied, angles: int) -> np.ndarray:
+    """``tied`` as (angles,) group ids 0..G-1, every id used (the identity when None); raises
+    ``ValueError`` otherwise."""
+    if tied is None:
+        return np.arange(angles)
+    groups = np.asarray(tied)
+    if groups.shape != (angles,) or not np.issubdtype(groups.dtype, np.integer):
+        raise ValueError(f"tied must be {angles} integer group ids, one per joint angle, got {groups.dtype} shape {groups.shape}")
+    if groups.min(initial=0) < 0 or set(groups.tolist()) != set(range(int(groups.max(initial=-1)) + 1)):
+        raise ValueError(f"tied must number its groups 0..G-1 with none skipped, got {sorted(set(groups.tolist()))}")
+    return groups
+
+
+def pooled_rms(scales, groups: np.ndarray) -> np.ndarray:
+    """Each entry replaced by the RMS of ``scales`` over its group."""
+    scales = np.asarray(scales, np.float64)
+    totals = np.bincount(groups, weights=scales**2) / np.bincount(groups)
+    return np.sqrt(totals[groups])
 
 
 def transition_log_likelihood(
@@ -266,24 +298,29 @@ def transition_log_likelihood(
     return jnp.mean(logsumexp(log_density, axis=0) - jnp.log(k))
 
 
-def fit_transition_scales(pairs, manifold_means, s_xx_start, s_zx_start, *, floor: float = 1e-3, max_steps: int = 500):
+def fit_transition_scales(pairs, manifold_means, s_xx_start, s_zx_start, *, floor: float = 1e-3, max_steps: int = 500,
+                          groups=None):
     """Maximum-likelihood ``(s_xx, s_zx)`` of MRPF's transition (``transition_log_likelihood``)
     over pose pairs ``[(previous (T, A), current (T, A)), ...]`` with ``manifold_means``
     ``[(K, T, A), ...]``, by BFGS on log scales with a smooth floor
-    ``s = sqrt(floor^2 + exp(2 theta))``. Returns two (A,) float64 NumPy arrays."""
+    ``s = sqrt(floor^2 + exp(2 theta))``; with ``groups`` ((A,) ids 0..G-1) one pair of scales
+    per group (started at the group's first entry). Returns two (A,) float64 NumPy arrays."""
     previous = jnp.concatenate([jnp.asarray(a) for a, _ in pairs])
     current = jnp.concatenate([jnp.asarray(b) for _, b in pairs])
     means = jnp.concatenate([jnp.asarray(m) for m in manifold_means], axis=1)
     dims = previous.shape[1]
+    groups = np.arange(dims) if groups is None else np.asarray(groups)
+    count = int(groups.max()) + 1
 
     def unpack(theta):
         scales = jnp.sqrt(floor**2 + jnp.exp(2 * theta))
-        return scales[:dims], scales[dims:]
+        return scales[:count][groups], scales[count:][groups]
 
     def loss(theta, _):
         return -transition_log_likelihood(previous, current, means, *unpack(theta))
 
-    start_scales = jnp.concatenate([jnp.asarray(s_xx_start), jnp.asarray(s_zx_start)])
+    first = np.array([np.flatnonzero(groups == k)[0] for k in range(count)])
+    start_scales = jnp.concatenate([jnp.asarray(s_xx_start)[first], jnp.asarray(s_zx_start)[first]])
     start = jnp.log(jnp.sqrt(jnp.maximum(start_scales**2 - floor**2, floor**2)))
     solution = optx.minimise(loss, optx.BFGS(rtol=1e-7, atol=1e-7), start.astype(previous.dtype), max_steps=max_steps, throw=False)
     theta = jnp.where(jnp.isfinite(loss(solution.value, None)), solution.value, start)

@@ -2,8 +2,10 @@
 exactly from eq. 28 ("mrpf") or as Alg. 1 prints it ("mrpf-alg1"). On a BC-GPLVM (000's
 manifold, and "mrpf-alg1"'s default) the latent draw is eq. 27's; on a GPDM ("mrpf"'s default:
 measured better on the real and the synthetic jogs, README) the GPDM's predictive dynamics
-from the particle's own latent point."""
+from the particle's own latent point. "mrpf" fits eq. 28's scales with each left joint angle and
+its right mirror sharing theirs; "mrpf-alg1" per angle, as printed."""
 
+from ..body import humaneva_skeleton, mirrored_groups
 from ..dynamics import fit_mrpf_transition
 from ..filters import SIR
 from ._registry import TrackerRecipe
@@ -13,9 +15,20 @@ def _latent_proposal(manifold):
     return "gpdm" if manifold.latent_dynamics is not None else "back-constraint"
 
 
+# A left joint angle and its right mirror share eq. 28's scales, fitted on both together: on the
+# real takes it gained on six rows of eight (README, "Left and right share MRPF's pull").
+MIRRORED_ANGLES = mirrored_groups(humaneva_skeleton().dof_names[3:])
+
+
+def _mirrored(manifold):
+    """The HumanEva skeleton's mirrored angles, or None for a manifold of another skeleton's."""
+    angles = manifold.pose_dim - manifold.global_dims
+    return MIRRORED_ANGLES if angles == len(MIRRORED_ANGLES) else None
+
+
 def fit_product(key, motion):
     return fit_mrpf_transition(motion.manifold, list(motion.validation), key=key, proposal="product",
-                               latent_proposal=_latent_proposal(motion.manifold))
+                               latent_proposal=_latent_proposal(motion.manifold), tied=_mirrored(motion.manifold))
 
 
 def fit_printed(key, motion):
