@@ -471,7 +471,7 @@ def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
     assert mirrored[names.index("lknee_flex")] == mirrored[names.index("rknee_flex")]
     assert len({mirrored[names.index(n)] for n in ("spine_flex", "neck_twist", "lhip_flex")}) == 3
     prior, poses = walk_prior
-    mrpf = fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored)
+    mrpf = fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored, samples=8)
     for left, right in (("lhip_flex", "rhip_flex"), ("lelbow_flex", "relbow_flex")):
         i, j = names.index(left), names.index(right)
         assert mrpf.s_zx[i] == mrpf.s_zx[j] and mrpf.s_xx[6 + i] == mrpf.s_xx[6 + j]
