@@ -414,6 +414,19 @@ def test_dynamics_fitted_on_validation(walk_prior, getkey):
         fit_mrpf_transition(prior, poses[40:], key=getkey(), proposal="optimal")
 
 
+def eq28_pairs(key, s_xx, s_zx, t):
+    """(previous, mu, current), each (t, A) float64: previous poses, manifold means near them and
+    current poses drawn from 000 eq. 28 normalised, with scales s_xx, s_zx (A,)."""
+    keys = jax.random.split(key, 3)
+    a = len(s_xx)
+    previous = np.asarray(jax.random.normal(keys[0], (t, a), jnp.float64)) * 0.3
+    mu = previous + 0.1 * np.asarray(jax.random.normal(keys[1], (t, a), jnp.float64))
+    total = s_xx**2 + s_zx**2
+    mean = (s_zx**2 * previous + s_xx**2 * mu) / total
+    current = mean + np.sqrt(s_xx**2 * s_zx**2 / total) * np.asarray(jax.random.normal(keys[2], (t, a), jnp.float64))
+    return previous, mu, current
+
+
 def test_transition_scales_recover_the_generating_ones(getkey):
     """Pose pairs drawn from 000 eq. 28 (normalised) with known s_xx, s_zx: the maximum-likelihood
     fit recovers them, the objective's autodiff gradient vanishes there, and moving any log-scale
@@ -422,11 +435,7 @@ def test_transition_scales_recover_the_generating_ones(getkey):
 
     t, a = 4000, 3
     s_xx, s_zx = np.array([0.05, 0.02, 0.08]), np.array([0.02, 0.04, 0.01])
-    previous = np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64)) * 0.3
-    mu = previous + 0.1 * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
-    total = s_xx**2 + s_zx**2
-    mean = (s_zx**2 * previous + s_xx**2 * mu) / total
-    current = mean + np.sqrt(s_xx**2 * s_zx**2 / total) * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    previous, mu, current = eq28_pairs(getkey(), s_xx, s_zx, t)
     fit_xx, fit_zx = fit_transition_scales([(previous, current)], [mu[None]], np.full(a, 0.03), np.full(a, 0.03), floor=1e-6)
     np.testing.assert_allclose(fit_xx, s_xx, rtol=0.08)
     np.testing.assert_allclose(fit_zx, s_zx, rtol=0.08)
@@ -448,11 +457,7 @@ def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
 
     t, a = 4000, 3
     s_xx, s_zx = np.array([0.05, 0.02, 0.05]), np.array([0.02, 0.04, 0.02])
-    previous = np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64)) * 0.3
-    mu = previous + 0.1 * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
-    total = s_xx**2 + s_zx**2
-    mean = (s_zx**2 * previous + s_xx**2 * mu) / total
-    current = mean + np.sqrt(s_xx**2 * s_zx**2 / total) * np.asarray(jax.random.normal(getkey(), (t, a), jnp.float64))
+    previous, mu, current = eq28_pairs(getkey(), s_xx, s_zx, t)
     groups = np.array([0, 1, 0])
     start = np.full(a, 0.03)
     tied_xx, tied_zx = fit_transition_scales([(previous, current)], [mu[None]], start, start, floor=1e-6, groups=groups)
