@@ -12,6 +12,7 @@ from jaxtrack.io import load_sequence, save_sequence
 from helpers import small_scene
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_render_writes_png_and_gif(tmp_path, capsys):
     seq = small_scene()[2]
     path = tmp_path / "walk.npz"
@@ -157,6 +158,7 @@ def test_experiment_demo(tmp_path):
     assert "| S1 walk |" in Path(paths["table"]).read_text()
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch):
     """``track --chunk-frames K`` gives the result of one pass, writes the frames done so far to
     OUT.partial.npz after each chunk, and removes it once the whole output is written; an

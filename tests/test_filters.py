@@ -533,6 +533,7 @@ def test_latent_condensation_is_sir_is_one_layer_apf(walk_prior, getkey):
         np.testing.assert_allclose(info.estimate, results[0][1].estimate, rtol=1e-12)
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_runs_vmapped_over_keys_equal_separate_runs(walk_prior, getkey):
     """``jax.vmap`` of ``run_filter`` over keys gives each run's own result (MRPF and GPAPF with
     its final layer), and jit equals no jit (MRPF; the APF's is tested above)."""

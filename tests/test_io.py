@@ -127,6 +127,7 @@ def test_pose_columns_are_matched_by_name(scene, tmp_path):
         load_sequence(shuffled)
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_a_reordered_pose_layout_goes_through_every_command_as_the_standard_one(scene, tmp_path, capsys):
     """Every command reads sequences through the same loader, which puts the pose columns in the
     standard order by name: ``scene`` renders, ``fit`` learns and ``render`` draws the same

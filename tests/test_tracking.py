@@ -131,6 +131,7 @@ register_tracker(TrackerRecipe("plugin-sir", "PluginSIR", "SIR with half the fit
 '''
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_a_plugin_tracker_runs_through_the_command_line(sequences, tmp_path, capsys):
     from jaxtrack.cli import main
     from jaxtrack.io import save_sequence
