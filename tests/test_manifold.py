@@ -260,6 +260,7 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
     assert type(load_model(tmp_path / "v1.eqx")[0]).__name__ == "BCGPLVM"
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_inverse_mapping(walk_jog):
     walk, _ = walk_jog
     Y = walk.pose[:60, 6:]

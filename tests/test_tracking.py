@@ -215,6 +215,7 @@ def test_refined_budget_pays_for_gradients_with_particles():
         build_tracker(get_tracker("sir"), fitted, flat, Budget(100, 1, 2, 10.0), LangevinRefinement(3))
 
 
+@pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
 def test_tracking_at_a_lower_resolution():
     """A 160x120 scene tracked at 80x60: the silhouettes are block-averaged, the cameras rescaled,
     and both agree with the scene rendered at 80x60 directly."""
