@@ -38,7 +38,7 @@ import argparse
 import os
 import time
 
-from bench_output import write_json
+from bench_output import pin_threads, write_json
 
 EXACT_MODELS = ("gplvm", "bc-gplvm", "gpdm")
 
@@ -348,7 +348,7 @@ def main():
         MEMORY["memory"] = args.memory
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, str(args.threads))
-    os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
+    pin_threads(args.threads)
     import jax
 
     from jaxtrack.manifold import LBFGS_MEMORY

@@ -11,3 +11,11 @@ def write_json(rows, path: str | None) -> None:
     if path:
         with open(path, "w") as handle:
             json.dump(rows, handle, indent=1)
+
+
+def pin_threads(threads: int) -> None:
+    """Pin XLA's CPU thread pool to ``threads`` cores (before JAX is imported; an ``XLA_FLAGS``
+    already set wins), so that timings on a shared machine use the cores they were given."""
+    import os
+
+    os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={threads}")

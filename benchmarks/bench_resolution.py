@@ -21,9 +21,8 @@ common to every pose does not) and their correlation.
 from __future__ import annotations
 
 import argparse
-import os
 
-from bench_output import write_json
+from bench_output import pin_threads, write_json
 
 
 def main():
@@ -44,7 +43,7 @@ def main():
     parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
     parser.add_argument("--plot", metavar="PNG", help="draw one view's strata and sample, and sampled against dense costs, here")
     args = parser.parse_args()
-    os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
+    pin_threads(args.threads)
     import json
 
     import jax

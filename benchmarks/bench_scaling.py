@@ -21,7 +21,7 @@ import resource
 import statistics
 import time
 
-from bench_output import write_json
+from bench_output import pin_threads, write_json
 
 
 def scene(width, height, views, frames, key):
@@ -132,7 +132,7 @@ def main():
     parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
     parser.add_argument("--plot", metavar="PNG", help="draw the three sweeps here")
     args = parser.parse_args()
-    os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
+    pin_threads(args.threads)
     import json
 
     import jax

@@ -19,9 +19,8 @@ calls, and the ratio coarse / tracked.
 from __future__ import annotations
 
 import argparse
-import os
 
-from bench_output import write_json
+from bench_output import pin_threads, write_json
 
 PROFILES = (  # (entry, label, unit scale for the axis, half-range in pose units)
     ("x", "root x (mm)", 1000.0, 0.25),
@@ -44,7 +43,7 @@ def main():
     parser.add_argument("--json", metavar="PATH", help="also write the profiles to this JSON file")
     parser.add_argument("--plot", metavar="PNG", help="draw the profiles here")
     args = parser.parse_args()
-    os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={args.threads}")
+    pin_threads(args.threads)
     import json
 
     import jax
