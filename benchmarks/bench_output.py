@@ -19,3 +19,12 @@ def pin_threads(threads: int) -> None:
     import os
 
     os.environ.setdefault("XLA_FLAGS", f"--xla_cpu_multi_thread_eigen=true intra_op_parallelism_threads={threads}")
+
+
+def add_output_arguments(parser, plot: str | None = None) -> None:
+    """The options every benchmark shares: ``--threads`` (for ``pin_threads``), ``--json PATH``
+    and, when ``plot`` describes a figure, ``--plot PNG``."""
+    parser.add_argument("--threads", type=int, default=2, help="CPU threads for XLA (pin them to the cores you have)")
+    parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
+    if plot is not None:
+        parser.add_argument("--plot", metavar="PNG", help=plot)

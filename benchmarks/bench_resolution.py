@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench_output import pin_threads, write_json
+from bench_output import add_output_arguments, pin_threads, write_json
 
 
 def main():
@@ -39,9 +39,7 @@ def main():
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--particles", type=int, default=200, help="poses for the bias measurement")
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
-    parser.add_argument("--plot", metavar="PNG", help="draw one view's strata and sample, and sampled against dense costs, here")
+    add_output_arguments(parser, plot="draw one view's strata and sample, and sampled against dense costs, here")
     args = parser.parse_args()
     pin_threads(args.threads)
     import json

@@ -21,7 +21,7 @@ import resource
 import statistics
 import time
 
-from bench_output import pin_threads, write_json
+from bench_output import add_output_arguments, pin_threads, write_json
 
 
 def scene(width, height, views, frames, key):
@@ -128,9 +128,7 @@ def main():
     parser.add_argument("--memory-particles", type=int, default=2000)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
-    parser.add_argument("--plot", metavar="PNG", help="draw the three sweeps here")
+    add_output_arguments(parser, plot="draw the three sweeps here")
     args = parser.parse_args()
     pin_threads(args.threads)
     import json

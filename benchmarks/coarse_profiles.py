@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import argparse
 
-from bench_output import pin_threads, write_json
+from bench_output import add_output_arguments, pin_threads, write_json
 
 PROFILES = (  # (entry, label, unit scale for the axis, half-range in pose units)
     ("x", "root x (mm)", 1000.0, 0.25),
@@ -39,9 +39,7 @@ def main():
     parser.add_argument("--points", type=int, default=121, help="offsets per profile")
     parser.add_argument("--particles", type=int, default=100, help="poses per timed evaluation")
     parser.add_argument("--repeats", type=int, default=30, help="timed steady-state calls per level")
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--json", metavar="PATH", help="also write the profiles to this JSON file")
-    parser.add_argument("--plot", metavar="PNG", help="draw the profiles here")
+    add_output_arguments(parser, plot="draw the profiles here")
     args = parser.parse_args()
     pin_threads(args.threads)
     import json
