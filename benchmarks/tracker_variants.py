@@ -18,6 +18,10 @@ protocol (every option of that script applies):
   Reid; ``APF(partitions=...)``), the schedule set before any measurement. APF's layers after
   the transition perturb the root and the spine, then the legs, then the arms and the neck,
   then everything; GPAPF's, the global entries, then the latent point, then both.
+- ``mrpf-gle-start``: MRPF on its 2-D GPDM fitted from 002's GLE embedding
+  (``make_gpdm(..., init="gle")``) instead of the principal components, which fold each gait
+  cycle of the demo's motion into a thin loop whose two sides lie side by side (``GLE_START_STEPS`` fit
+  steps and the optimiser, the experiment's defaults, whatever ``--fit-steps`` says).
 - ``apf-coarse``, ``gpapf-coarse``: coarse-to-fine annealing (``APF(coarse_likelihood=...,
   coarse_layers=...)`` with ``likelihood.coarsen_likelihood``), the schedule set before any
   measurement: the first half of the annealing layers (rounded down: 2 of APF's 5, 2 of
@@ -39,10 +43,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton
+from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton, joint_angles
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
 from jaxtrack.likelihood import AbstractLikelihood, coarsen_likelihood
+from jaxtrack.manifold import make_gpdm
 from jaxtrack.tracking import TrackerRecipe, get_tracker, register_tracker
 
 FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
@@ -177,6 +182,22 @@ def _gpapf_mixture(key, motion):
     return _latent_mixture(key, motion), get_tracker("gpapf").fit(key, motion)[1]
 
 
+GLE_START_STEPS = 300  # the experiment's default fit steps
+
+
+def _gle_start(name):
+    """Tracker ``name`` on a GPDM of its own latent dimension refitted from the GLE start."""
+    base = get_tracker(name)
+
+    def fit(key, motion):
+        angles = [joint_angles(p) for p in motion.training]
+        model, _ = make_gpdm(angles, motion.manifold.latent_dim, init="gle").fit(max_steps=GLE_START_STEPS, optimiser="optax")
+        return base.fit(key, dataclasses.replace(motion, manifold=model.prior(motion.manifold.global_dims), model=model))
+
+    return dataclasses.replace(base, name=f"{name}-gle-start", label=f"{base.label}+GLE start", manifolds=("gpdm",), fit=fit,
+                               description=f"{base.label} on a GPDM fitted from the GLE embedding instead of PCA")
+
+
 MRPF_DIM = get_tracker("mrpf").latent_dim  # each variant on its base tracker's latent dimension
 LATENT_DIM = get_tracker("latentpf").latent_dim
 
@@ -192,6 +213,7 @@ VARIANTS = [
     _mixture("mrpf", _mrpf_mixture),
     _mixture("gpapf", _gpapf_mixture),
     _mixture("latentpf", _latent_mixture),
+    _gle_start("mrpf"),
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
                   needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True, latent_dim=MRPF_DIM),
     TrackerRecipe("mrpf-anneal", "MRPF+anneal3", "MRPF's transition as layer 0 of three annealing layers", _mrpf, _build_annealed(),

@@ -457,3 +457,32 @@ def test_fit_takes_exactly_the_steps_asked_and_never_returns_nans():
     with pytest.raises(ValueError, match="max_steps must be a positive integer"):
         fit_model(Cliff(jnp.zeros(1)), max_steps=0)
 
+
+
+def test_gpdm_gle_start_keeps_the_mirror_half_cycles_apart():
+    """A cycle whose strongest directions, once standardised, are a half-cycle feature (cos 2 phi,
+    three entries) and the stride (sin phi, two): PCA's 2-D start puts phase phi on phase
+    pi - phi, the GLE start (002) lays the cycle out as a loop, and the GPDM fitted from it
+    keeps the two half-cycles apart."""
+    phase = 2 * np.pi * np.arange(120) / 40  # three cycles of 40 frames
+    noise = 0.01 * np.random.default_rng(0).standard_normal((120, 6))
+    shifts = np.array([0.0, 0.05, 0.0, 0.05, 0.1, 0.0])
+    frequency = np.array([1, 1, 2, 2, 2, 1])
+    cycle = np.where(np.arange(6) < 2, np.sin(frequency * phase[:, None] + shifts), np.cos(frequency * phase[:, None] + shifts)) + noise
+    takes = [cycle[:60], cycle[60:]]
+    first, mirror = np.arange(38, 43), 60 - np.arange(38, 43)  # phi near 0 and pi - phi, in the first take
+
+    def separation(model):
+        """Mirror-phase distance over the median step."""
+        z = np.asarray(model.training_latent())
+        return np.median(np.linalg.norm(z[first] - z[mirror], axis=1)) / np.median(np.linalg.norm(np.diff(z[:60], axis=0), axis=1))
+
+    pca_start, gle_start = make_gpdm(takes, 2), make_gpdm(takes, 2, init="gle")
+    assert np.std(np.asarray(gle_start.latent)[:, 0]) == pytest.approx(1.0)
+    fitted = gle_start.fit(max_steps=100)[0]
+    print(f"mirror phases apart: PCA start {separation(pca_start):.2f}, GLE start {separation(gle_start):.2f}, "
+          f"fitted from it {separation(fitted):.2f} median steps")
+    assert separation(pca_start) < 1.0 < 8.0 < separation(gle_start)
+    assert separation(fitted) > 8.0
+    with pytest.raises(ValueError, match="init must be one of"):
+        make_gpdm(takes, 2, init="isomap")

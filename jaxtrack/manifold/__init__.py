@@ -35,6 +35,7 @@ from ._lbfgs import LBFGS_MEMORY as LBFGS_MEMORY
 from ._lbfgs import lbfgs_minimise as lbfgs_minimise
 from ._models import BCGPLVM as BCGPLVM
 from ._models import GPDM as GPDM
+from ._models import GPDM_STARTS as GPDM_STARTS
 from ._models import GPLVM as GPLVM
 from ._models import KernelBackConstraint as KernelBackConstraint
 from ._models import MLPBackConstraint as MLPBackConstraint

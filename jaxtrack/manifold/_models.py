@@ -33,6 +33,7 @@ from ._kernels import (
     squared_distances,
 )
 from ._predictor import GPPredictor, full_gp_predictor
+from ._spectral import fit_spectral
 
 
 def check_training_data(Y, latent_dim: int, name: str = "training poses") -> np.ndarray:
@@ -412,8 +413,22 @@ def make_bc_gplvm(
     )
 
 
-def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, dtype=jnp.float64) -> GPDM:
-    """A GPDM over one or more training sequences (list of (T_i, D) arrays), PCA-initialised."""
+GPDM_STARTS = ("pca", "gle")
+
+
+def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, init: str = "pca", dtype=jnp.float64) -> GPDM:
+    """A GPDM over one or more training sequences (list of (T_i, D) arrays).
+
+    ``init`` picks the latent trajectory the fit starts from: "pca" (the principal components,
+    as 001 does) or "gle" (002's Generalised Laplacian Eigenmap of the sequences, scaled as the
+    PCA start). Where a half-cycle feature outweighs the stride's quarter-phase partner, a 2-D
+    PCA start folds each gait cycle into a thin loop, phase phi beside phase pi - phi (the demo's
+    motion does; the CMU walk does not); the GLE's temporal and stylistic graph lays each cycle
+    out as a circle (README, "Where a 2-D GPDM starts"). The GLE needs every sequence to hold
+    repeated cycles (``fit_spectral``'s errors say what is missing).
+    """
+    if init not in GPDM_STARTS:
+        raise ValueError(f"init must be one of {GPDM_STARTS}, got {init!r}")
     if isinstance(sequences, np.ndarray) and sequences.ndim == 2:
         sequences = [sequences]
     sequences = [np.asarray(s, np.float64) for s in sequences]
@@ -424,8 +439,13 @@ def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, dtype=jnp.f
     Y = check_training_data(np.concatenate(sequences), latent_dim)
     Yn, mean, std = standardise(Y, scale)
     starts = tuple(int(v) for v in np.cumsum([0] + [s.shape[0] for s in sequences]))
+    if init == "gle":
+        spectral = np.asarray(fit_spectral(sequences, "gle", latent_dim=latent_dim).latent, np.float64)
+        latent = spectral / np.std(spectral[:, 0])  # unit scale, as the PCA start
+    else:
+        latent = _initial_latent(Yn, latent_dim)
     return GPDM(
-        latent=jnp.asarray(_initial_latent(Yn, latent_dim), dtype),
+        latent=jnp.asarray(latent, dtype),
         kernel=rbf_bias_kernel(beta=1.0, gamma=1.0, beta0=1e-2, noise=1e-2, dtype=dtype),
         dynamics=linear_rbf_kernel(dtype=dtype),
         log_w=jnp.zeros(Y.shape[1], dtype),
