@@ -479,7 +479,7 @@ def test_gpdm_gle_start_keeps_the_mirror_half_cycles_apart():
 
     pca_start, gle_start = make_gpdm(takes, 2), make_gpdm(takes, 2, init="gle")
     assert np.std(np.asarray(gle_start.latent)[:, 0]) == pytest.approx(1.0)
-    fitted = gle_start.fit(max_steps=100)[0]
+    fitted = gle_start.fit(max_steps=30)[0]
     print(f"mirror phases apart: PCA start {separation(pca_start):.2f}, GLE start {separation(gle_start):.2f}, "
           f"fitted from it {separation(fitted):.2f} median steps")
     assert separation(pca_start) < 1.0 < 8.0 < separation(gle_start)
