@@ -424,8 +424,8 @@ def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, init: str =
     PCA start). Where a half-cycle feature outweighs the stride's quarter-phase partner, a 2-D
     PCA start folds each gait cycle into a thin loop, phase phi beside phase pi - phi (the demo's
     motion does; the CMU walk does not); the GLE's temporal and stylistic graph lays each cycle
-    out as a circle (README, "Where a 2-D GPDM starts"). The GLE needs every sequence to hold
-    repeated cycles (``fit_spectral``'s errors say what is missing).
+    out as a circle (README, "Where a 2-D GPDM starts"). A sequence in which no repeated cycle
+    is found is one piece of the GLE's graph; ``fit_spectral``'s errors name what is too short.
     """
     if init not in GPDM_STARTS:
         raise ValueError(f"init must be one of {GPDM_STARTS}, got {init!r}")
