@@ -458,7 +458,6 @@ def test_fit_takes_exactly_the_steps_asked_and_never_returns_nans():
         fit_model(Cliff(jnp.zeros(1)), max_steps=0)
 
 
-
 def test_gpdm_gle_start_keeps_the_mirror_half_cycles_apart():
     """A cycle whose strongest directions, once standardised, are a half-cycle feature (cos 2 phi,
     three entries) and the stride (sin phi, two): PCA's 2-D start puts phase phi on phase
