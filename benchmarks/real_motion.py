@@ -13,6 +13,10 @@ the shared data at 60 Hz); point ``--cmu`` and ``--bandai`` at their output fold
     taskset -c 0,1 python benchmarks/real_motion.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --runs 5 --budget 500 --json real_motion.json
 
+``--likelihood-scale`` sets the silhouette likelihood's temperature (several: one table each), and
+``--body known`` gives the trackers the rendered body's radii (the check that the mismatched
+body is not what limits them).
+
 ``--sequences held-out`` runs the same protocols on four takes that no setting of the library
 was ever chosen on (CMU walk 35_04 and jog 35_22, Bandai walk 004 and run 006): the check that
 the defaults were not tuned to the four test takes above.
@@ -84,8 +88,9 @@ def load_protocol_takes(parser, folders: dict, name: str, takes) -> dict:
     return {t: load_sequence(p) for t, p in paths.items()}
 
 
-def other_body_scene(key, sequence, views: int, frames):
-    """The test take rendered with the mismatched body, its radii withheld from the tracker."""
+def other_body_scene(key, sequence, views: int, frames, *, withhold: bool = True):
+    """The test take rendered with the mismatched body, its radii withheld from the tracker
+    (``withhold=False``: given to it, so the tracker's body is the rendered one)."""
     import jax.numpy as jnp
     import numpy as np
 
@@ -96,7 +101,7 @@ def other_body_scene(key, sequence, views: int, frames):
     radii = np.asarray(body.radii) * np.array([BODY_FACTORS[g] for g in body.capsule_groups])
     other = sequence.replace(capsule_radii=np.asarray(jnp.asarray(radii), np.float64))
     scene = scene_from_sequence(key, other, default_rig(80, 60, num_views=views), SilhouetteNoise(), frames=frames)
-    return scene.replace(capsule_radii=None)
+    return scene.replace(capsule_radii=None) if withhold else scene
 
 
 def drift_ratio(curve) -> float:
@@ -128,6 +133,10 @@ def main():
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--fit-optimiser", choices=["optax", "lbfgs"], default="optax",
                         help="the manifold fit's L-BFGS (optax, the experiment's default: the README's tables)")
+    parser.add_argument("--likelihood-scale", type=float, nargs="+", default=[100.0],
+                        help="temperatures of the silhouette likelihood (several: one table each; ExperimentConfig's default 100)")
+    parser.add_argument("--body", choices=["other", "known"], default="other",
+                        help="other: the trackers keep the default capsules; known: they are given the rendered body's radii")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
     args = parser.parse_args()
@@ -145,30 +154,32 @@ def main():
         train = [takes[t] for t in train_takes]
         validation = [takes[t] for t in validation_takes]
         for views in args.views:
-            test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames)]
+            test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames, withhold=args.body == "other")]
             residuals = [None if r == "own" else float(r) for r in args.residual]
-            for velocity, manifold, latent_dim, residual in itertools.product(velocities, args.manifold, args.latent_dim, residuals):
+            settings = itertools.product(velocities, args.manifold, args.latent_dim, residuals, args.likelihood_scale)
+            for velocity, manifold, latent_dim, residual, likelihood_scale in settings:
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
                                           fit_optimiser=args.fit_optimiser,
                                           seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold,
-                                          latent_dim=latent_dim, residual=residual)
+                                          latent_dim=latent_dim, residual=residual, likelihood_scale=likelihood_scale)
                 start = time.perf_counter()
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
                 print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'}, "
-                      f"residual {residual if residual is not None else 'own'} "
+                      f"residual {residual if residual is not None else 'own'}, likelihood scale {likelihood_scale:g}, body {args.body} "
                       f"({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
                     "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "latent_dim": latent_dim,
-                    "residual": residual,
+                    "residual": residual, "likelihood_scale": likelihood_scale, "body": args.body,
                     "frames": test[0].num_frames,
                     "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),
+                                    "mean_ess": per_method[m]["mean_ess"],
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "velocity": config.velocity_of(m), "manifold": config.manifold_of(m),
