@@ -9,8 +9,9 @@ better sampler cannot lower that error; only the prior (the dynamics, the manifo
 Prints, per protocol, view count and tracker, the joint error and the gap by quarter of the
 frames, and the share of frames in which the truth scores higher. ``--demo`` adds the demo's two
 test scenes with the demo's settings (4 views, budget 300, 100 fit steps; rendered with the
-tracker's own body). ``--plot`` draws the error and the gap per frame for the first protocol and
-view count.
+tracker's own body). ``--silhouettes clean`` and ``--size WxH`` render the protocols' views
+without noise or larger (``real_motion.py``'s options). ``--plot`` draws the error and the gap
+per frame for the first protocol and view count.
 
     taskset -c 0,1 python benchmarks/likelihood_gap.py --cmu /tmp/cmu --bandai /tmp/bandai --json likelihood_gap.json
     taskset -c 0,1 python benchmarks/likelihood_gap.py --cmu /tmp/cmu --sequences cmu-jog --views 4 \\
@@ -23,7 +24,7 @@ from __future__ import annotations
 import argparse
 
 from bench_output import add_output_arguments, pin_threads, write_json
-from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, other_body_scene, protocol_names
+from real_motion import PROTOCOLS, add_protocol_arguments, add_scene_arguments, load_protocol_takes, other_body_scene, protocol_names
 
 DEMO_BUDGET, DEMO_FIT_STEPS = 300, 100  # jaxtrack demo's
 FIT_STEPS = 300  # the experiment's default
@@ -60,6 +61,7 @@ def main():
     parser.add_argument("--views", type=int, nargs="+", default=[4, 3])
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--seed", type=int, default=0)
+    add_scene_arguments(parser)
     parser.add_argument("--demo", action="store_true", help="also the demo's S1 walk and S2 jog (jaxtrack demo --seed's scenes)")
     add_output_arguments(parser, plot="draw the error and the likelihood gap per frame (first protocol and view count)")
     args = parser.parse_args()
@@ -83,7 +85,8 @@ def main():
         _dataset, train_takes, validation_takes, test_take, frames = PROTOCOLS[name]
         takes = load_protocol_takes(parser, folders, name, train_takes + validation_takes + [test_take])
         setups += [(name, views, [takes[t] for t in train_takes], [takes[t] for t in validation_takes],
-                    other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames), args.budget, FIT_STEPS)
+                    other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames,
+                                     clean=args.silhouettes == "clean", size=args.size), args.budget, FIT_STEPS)
                    for views in args.views]
     rows, curves = [], []
     for name, views, train, validation, test, budget, fit_steps in setups:
@@ -94,7 +97,8 @@ def main():
             poses, joints = results["estimates"][name][method]
             error = 1000 * np.linalg.norm(joints - scene.truth_joints, axis=-1).mean(axis=-1)
             gap = likelihood_gaps(scene, poses)
-            rows.append({"sequence": name, "views": views, "method": method, "error_mm_by_quarter": quarters(error),
+            rows.append({"sequence": name, "views": views, "method": method, "silhouettes": args.silhouettes,
+                         "size": list(args.size), "error_mm_by_quarter": quarters(error),
                          "gap_nats_by_quarter": quarters(gap), "truth_higher_fraction": round(float(np.mean(gap > 0)), 3),
                          "error_mm": error.round(2).tolist(), "gap_nats": gap.round(3).tolist()})
             print(f"{name:12s} {views} views {method:9s} error {quarters(error)} mm, ln p(truth) - ln p(estimate) "

@@ -13,9 +13,11 @@ the shared data at 60 Hz); point ``--cmu`` and ``--bandai`` at their output fold
     taskset -c 0,1 python benchmarks/real_motion.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --runs 5 --budget 500 --json real_motion.json
 
-``--likelihood-scale`` sets the silhouette likelihood's temperature (several: one table each), and
+``--likelihood-scale`` sets the silhouette likelihood's temperature (several: one table each),
 ``--body known`` gives the trackers the rendered body's radii (the check that the mismatched
-body is not what limits them).
+body is not what limits them), ``--silhouettes clean`` renders the views without
+background-subtraction noise and ``--size 160x120`` renders (and tracks) them larger: the checks
+that the noise and the pixel size are not what limits them.
 
 ``--sequences held-out`` runs the same protocols on four takes that no setting of the library
 was ever chosen on (CMU walk 35_04 and jog 35_22, Bandai walk 004 and run 006): the check that
@@ -67,6 +69,24 @@ def add_protocol_arguments(parser) -> None:
                              "no setting was chosen on)")
 
 
+def add_scene_arguments(parser) -> None:
+    """``--silhouettes`` (noisy or clean) and ``--size`` (the rendered views' WxH)."""
+    parser.add_argument("--silhouettes", choices=["noisy", "clean"], default="noisy",
+                        help="noisy: the default background-subtraction noise (SilhouetteNoise()); clean: none (NO_NOISE)")
+    parser.add_argument("--size", default="80x60", type=image_size, help="width x height of the rendered views, pixels")
+
+
+def image_size(text: str) -> tuple[int, int]:
+    """``"WxH"`` as ``(W, H)``, both positive (an argparse type)."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 160x120, got {text!r}") from None
+    if width < 1 or height < 1:
+        raise argparse.ArgumentTypeError(f"width and height must be positive, got {text!r}")
+    return width, height
+
+
 def protocol_names(sequences) -> list[str]:
     """``--sequences`` with "held-out" expanded into its protocols."""
     return [n for name in sequences for n in (HELD_OUT if name == "held-out" else [name])]
@@ -88,19 +108,22 @@ def load_protocol_takes(parser, folders: dict, name: str, takes) -> dict:
     return {t: load_sequence(p) for t, p in paths.items()}
 
 
-def other_body_scene(key, sequence, views: int, frames, *, withhold: bool = True):
-    """The test take rendered with the mismatched body, its radii withheld from the tracker
-    (``withhold=False``: given to it, so the tracker's body is the rendered one)."""
+def other_body_scene(key, sequence, views: int, frames, *, withhold: bool = True, clean: bool = False,
+                     size: tuple[int, int] = (80, 60)):
+    """The test take rendered with the mismatched body into ``size`` (W, H) views, its radii
+    withheld from the tracker (``withhold=False``: given to it, so the tracker's body is the
+    rendered one), with the default silhouette noise (``clean``: none)."""
     import jax.numpy as jnp
     import numpy as np
 
     from jaxtrack.camera import default_rig
-    from jaxtrack.data import SilhouetteNoise, scene_from_sequence
+    from jaxtrack.data import NO_NOISE, SilhouetteNoise, scene_from_sequence
 
     body = sequence.body()
     radii = np.asarray(body.radii) * np.array([BODY_FACTORS[g] for g in body.capsule_groups])
     other = sequence.replace(capsule_radii=np.asarray(jnp.asarray(radii), np.float64))
-    scene = scene_from_sequence(key, other, default_rig(80, 60, num_views=views), SilhouetteNoise(), frames=frames)
+    noise = NO_NOISE if clean else SilhouetteNoise()
+    scene = scene_from_sequence(key, other, default_rig(*size, num_views=views), noise, frames=frames)
     return scene.replace(capsule_radii=None) if withhold else scene
 
 
@@ -137,6 +160,7 @@ def main():
                         help="temperatures of the silhouette likelihood (several: one table each; ExperimentConfig's default 100)")
     parser.add_argument("--body", choices=["other", "known"], default="other",
                         help="other: the trackers keep the default capsules; known: they are given the rendered body's radii")
+    add_scene_arguments(parser)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="also write the results to this JSON file")
     args = parser.parse_args()
@@ -154,7 +178,8 @@ def main():
         train = [takes[t] for t in train_takes]
         validation = [takes[t] for t in validation_takes]
         for views in args.views:
-            test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames, withhold=args.body == "other")]
+            test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames, withhold=args.body == "other",
+                                     clean=args.silhouettes == "clean", size=args.size)]
             residuals = [None if r == "own" else float(r) for r in args.residual]
             settings = itertools.product(velocities, args.manifold, args.latent_dim, residuals, args.likelihood_scale)
             for velocity, manifold, latent_dim, residual, likelihood_scale in settings:
@@ -167,13 +192,14 @@ def main():
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
                 print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'}, "
-                      f"residual {residual if residual is not None else 'own'}, likelihood scale {likelihood_scale:g}, body {args.body} "
-                      f"({seconds:.0f} s)\n")
+                      f"residual {residual if residual is not None else 'own'}, likelihood scale {likelihood_scale:g}, body {args.body}, "
+                      f"{args.silhouettes} {args.size[0]}x{args.size[1]} silhouettes ({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
                     "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "latent_dim": latent_dim,
                     "residual": residual, "likelihood_scale": likelihood_scale, "body": args.body,
+                    "silhouettes": args.silhouettes, "size": list(args.size),
                     "frames": test[0].num_frames,
                     "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
