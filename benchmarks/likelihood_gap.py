@@ -1,8 +1,10 @@
 """Can the silhouettes tell the truth from a tracker's estimate? On ``real_motion.py``'s
 protocols (the test take rendered with another body into noisy 80x60 views), each tracker's
-first run is scored frame by frame under the likelihood it tracked with (000 eq. 12 at the
-experiment's scale): ``ln p(I_t | truth_t) - ln p(I_t | estimate_t)``, the truth being the
-inverse-kinematics pose every run starts from. A gap near 0 nats while the estimate is tens of
+first run is scored frame by frame under the silhouette likelihood it tracked with (000 eq. 12
+at the experiment's scale; the ground plane's prior, which the trackers also carry by default,
+is left out: the question is what the silhouettes see):
+``ln p(I_t | truth_t) - ln p(I_t | estimate_t)``, the truth being the inverse-kinematics pose
+every run starts from. A gap near 0 nats while the estimate is tens of
 millimetres off means the estimate sits where the likelihood cannot see the difference, so a
 better sampler cannot lower that error; only the prior (the dynamics, the manifold) can.
 

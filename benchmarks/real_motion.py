@@ -17,7 +17,8 @@ the shared data at 60 Hz); point ``--cmu`` and ``--bandai`` at their output fold
 ``--body known`` gives the trackers the rendered body's radii (the check that the mismatched
 body is not what limits them), ``--silhouettes clean`` renders the views without
 background-subtraction noise and ``--size 160x120`` renders (and tracks) them larger: the checks
-that the noise and the pixel size are not what limits them.
+that the noise and the pixel size are not what limits them. ``--ground-prior on off`` runs each
+setting with the ground plane's prior (the experiment's default) and without it.
 
 ``--sequences held-out`` runs the same protocols on four takes that no setting of the library
 was ever chosen on (CMU walk 35_04 and jog 35_22, Bandai walk 004 and run 006): the check that
@@ -158,6 +159,9 @@ def main():
                         help="the manifold fit's L-BFGS (optax, the experiment's default: the README's tables)")
     parser.add_argument("--likelihood-scale", type=float, nargs="+", default=[100.0],
                         help="temperatures of the silhouette likelihood (several: one table each; ExperimentConfig's default 100)")
+    parser.add_argument("--ground-prior", nargs="+", choices=["on", "off"], default=["on"],
+                        help="the ground plane's prior on every tracker's likelihood (several: one table each; default on, "
+                             "ExperimentConfig's)")
     parser.add_argument("--body", choices=["other", "known"], default="other",
                         help="other: the trackers keep the default capsules; known: they are given the rendered body's radii")
     add_scene_arguments(parser)
@@ -181,24 +185,27 @@ def main():
             test = [other_body_scene(jax.random.fold_in(key, views), takes[test_take], views, frames, withhold=args.body == "other",
                                      clean=args.silhouettes == "clean", size=args.size)]
             residuals = [None if r == "own" else float(r) for r in args.residual]
-            settings = itertools.product(velocities, args.manifold, args.latent_dim, residuals, args.likelihood_scale)
-            for velocity, manifold, latent_dim, residual, likelihood_scale in settings:
+            settings = itertools.product(velocities, args.manifold, args.latent_dim, residuals, args.likelihood_scale,
+                                         args.ground_prior)
+            for velocity, manifold, latent_dim, residual, likelihood_scale, ground in settings:
                 config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=args.fit_steps,
                                           fit_optimiser=args.fit_optimiser,
                                           seed=args.seed, velocity=velocity, manifold=None if manifold == "own" else manifold,
-                                          latent_dim=latent_dim, residual=residual, likelihood_scale=likelihood_scale)
+                                          latent_dim=latent_dim, residual=residual, likelihood_scale=likelihood_scale,
+                                          ground_prior=ground == "on")
                 start = time.perf_counter()
                 results = run_experiment(train, validation, test, config, names={"test": [name]}, progress=False)
                 seconds = time.perf_counter() - start
                 label = "own" if velocity is None else velocity
                 print(f"\n{name}, {views} views, other body, velocity={label}, manifold={manifold}, latent dim {latent_dim or 'own'}, "
-                      f"residual {residual if residual is not None else 'own'}, likelihood scale {likelihood_scale:g}, body {args.body}, "
+                      f"residual {residual if residual is not None else 'own'}, likelihood scale {likelihood_scale:g}, "
+                      f"ground prior {ground}, body {args.body}, "
                       f"{args.silhouettes} {args.size[0]}x{args.size[1]} silhouettes ({seconds:.0f} s)\n")
                 print(results_table(results), flush=True)
                 per_method = results["sequences"][name]
                 rows.append({
                     "sequence": name, "views": views, "velocity": velocity, "manifold": manifold, "latent_dim": latent_dim,
-                    "residual": residual, "likelihood_scale": likelihood_scale, "body": args.body,
+                    "residual": residual, "likelihood_scale": likelihood_scale, "ground_prior": ground == "on", "body": args.body,
                     "silhouettes": args.silhouettes, "size": list(args.size),
                     "frames": test[0].num_frames,
                     "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,

@@ -18,7 +18,8 @@ def _demo(args) -> int:
     if args.likelihood:
         run_likelihood_demo(args.out, seed=args.seed, num_frames=args.frames or 60, particles=args.budget or 500)
     else:
-        run_demo(args.out, seed=args.seed, frames=args.frames or 40, budget=args.budget or 300, runs=args.runs)
+        run_demo(args.out, seed=args.seed, frames=args.frames or 40, budget=args.budget or 300, runs=args.runs,
+                 ground_prior=args.ground_prior)
     return 0
 
 
@@ -167,7 +168,8 @@ def _experiment(args) -> int:
         methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
         fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser,
         likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        calibrate_shape=args.calibrate_shape, resolution=args.resolution, pixel_samples=args.pixel_samples,
+        calibrate_shape=args.calibrate_shape, ground_prior=args.ground_prior, resolution=args.resolution,
+        pixel_samples=args.pixel_samples,
         refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
         residual=args.residual,
     )
@@ -215,7 +217,8 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples, residual=args.residual,
+        ground_prior=args.ground_prior, refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples,
+        residual=args.residual,
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
@@ -314,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --likelihood)")
     demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --likelihood)")
     demo.add_argument("--runs", type=int, default=2, help="runs per method (default: %(default)s)")
+    demo.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
+                      help="the trackers' likelihood times the ground plane's prior (--no-ground-prior: the silhouettes alone) "
+                           "(default: on)")
     demo.add_argument("--likelihood", action="store_true",
                       help="instead: score true against perturbed poses and refine poses by gradient descent")
     demo.set_defaults(run=_demo)
@@ -388,6 +394,10 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--seed", type=int, default=0)
     experiment.add_argument("--calibrate-shape", action="store_true",
                             help="fit the capsule radii to each test sequence's first frame before tracking")
+    experiment.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
+                            help="keep the feet out of the floor (world z = 0): every tracker's likelihood times a prior on the "
+                                 "ankles' height, their clearance fitted on the validation motion (--no-ground-prior: the silhouettes "
+                                 "alone) (default: on)")
     experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
                             help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                                  "(e.g. 80x60 for 320x240 data)")
@@ -424,6 +434,10 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
     track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
+    track.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
+                       help="keep the feet out of the floor (world z = 0): the likelihood times a prior on the ankles' height, "
+                            "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
+                            "(default: on)")
     track.add_argument("--pixel-samples", type=int, metavar="N",
                        help="score the silhouettes on N stratified sample pixels per view and frame instead of every pixel "
                             "(a cost independent of the image size; e.g. 2048 for 320x240 or 640x480 data)")

@@ -167,9 +167,11 @@ DEMO_VALIDATION = (("walk", "S1"), ("jog", "S2"))
 DEMO_TEST = (("walk", "S1"), ("jog", "S2"))
 
 
-def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40, fps=60.0, width=80, height=60, progress=False):
+def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40, fps=60.0, width=80, height=60, progress=False,
+                   noise: SilhouetteNoise | None = None):
     """Synthetic training, validation and test sequences (walk and jog of subjects S1 and S2);
-    the test ones rendered with background-subtraction noise in the default 4-camera rig."""
+    the test ones rendered with background-subtraction noise (``noise``, default
+    ``SilhouetteNoise()``; ``data.NO_NOISE`` for none) in the default 4-camera rig."""
     from .data import motion_sequence
 
     def motion(gait, subject, frames, tag):
@@ -179,7 +181,8 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
     validation = [motion_sequence(motion(g, s, validation_frames, 100 + i)) for i, (g, s) in enumerate(DEMO_VALIDATION)]
     rig = default_rig(width, height)
     test = [
-        build_scene(jax.random.fold_in(key, 300 + i), motion(g, s, test_frames, 200 + i), rig, SilhouetteNoise(), progress=progress)
+        build_scene(jax.random.fold_in(key, 300 + i), motion(g, s, test_frames, 200 + i), rig,
+                    SilhouetteNoise() if noise is None else noise, progress=progress)
         for i, (g, s) in enumerate(DEMO_TEST)
     ]
     names = {
@@ -191,14 +194,16 @@ def demo_sequences(key, *, train_frames=80, validation_frames=80, test_frames=40
 
 
 def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40, budget: int = 300, runs: int = 2,
-             methods=None, velocity: bool | None = None, manifold: str | None = None, verbose: bool = True):
+             methods=None, velocity: bool | None = None, manifold: str | None = None, ground_prior: bool = True,
+             verbose: bool = True):
     """The small experiment (module docstring); returns ``(results, paths)``.
 
     Args:
         methods: registered tracker names (default: the papers' five).
-        velocity, manifold: as ``ExperimentConfig``'s (a Kalman-tracked velocity for every
-            tracker or none, None for each one's own; the manifold of every manifold tracker,
-            None for each one's own).
+        velocity, manifold, ground_prior: as ``ExperimentConfig``'s (a Kalman-tracked velocity
+            for every tracker or none, None for each one's own; the manifold of every manifold
+            tracker, None for each one's own; the ground plane's prior on every tracker's
+            likelihood or not).
     """
     from .experiment import ExperimentConfig, results_table, run_experiment, write_outputs
     from .tracking import PAPER_TRACKERS
@@ -215,10 +220,11 @@ def run_demo(out_dir: str = "jaxtrack_demo", *, seed: int = 0, frames: int = 40,
         save_sequence(path, seq)
     test = [load_sequence(os.path.join(out_dir, n.replace(" ", "_") + ".npz")) for n in names["test"]]
     config = ExperimentConfig(methods=tuple(methods or PAPER_TRACKERS), budget=budget, runs=runs, fit_steps=100, seed=seed,
-                              velocity=velocity, manifold=manifold)
+                              velocity=velocity, manifold=manifold, ground_prior=ground_prior)
     fitted = " and ".join(f"{k.upper()} ({q}-D)" for k, q in config.manifold_specs) or "no manifold"
     say(f"[2/4] fitting {fitted} and each tracker's dynamics; then {', '.join(config.methods)} with "
-        f"{budget} likelihood evaluations per frame, {runs} runs each")
+        f"{budget} likelihood evaluations per frame{' (silhouettes times the ground plane prior)' if ground_prior else ''}, "
+        f"{runs} runs each")
     results = run_experiment(train, validation, test, config, names=names, progress=verbose)
     say("[3/4] joint error (000 eq. 31), mm, mean (std) over runs:\n")
     say(results_table(results))

@@ -198,8 +198,8 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
 
 @pytest.mark.slow
 def test_track_with_a_pose_residual(tmp_path, capsys):
-    """``track --residual SCALE`` runs a latent tracker with the residual; a tracker whose state
-    is the pose refuses it with a clear message."""
+    """``track --residual SCALE`` runs a latent tracker with the residual (with and without
+    ``--no-ground-prior``); a tracker whose state is the pose refuses it with a clear message."""
     seq = small_scene(num_frames=4)[2]
     test = tmp_path / "walk.npz"
     save_sequence(test, seq)
@@ -208,6 +208,10 @@ def test_track_with_a_pose_residual(tmp_path, capsys):
     args = ["track", str(test), "--model", str(model), "--validation", str(test), "--budget", "16"]
     assert main([*args, "--method", "glegbpf", "--residual", "1", "--out", str(tmp_path / "est")]) == 0
     assert np.all(np.isfinite(load_sequence(tmp_path / "est.npz").pose))
+    # The same key without the ground prior: the silhouettes alone weigh the particles.
+    assert main([*args, "--method", "glegbpf", "--residual", "1", "--no-ground-prior", "--out", str(tmp_path / "bare")]) == 0
+    bare = load_sequence(tmp_path / "bare.npz").pose
+    assert np.all(np.isfinite(bare)) and not np.array_equal(bare, load_sequence(tmp_path / "est.npz").pose)
     capsys.readouterr()
     assert main([*args, "--method", "sir", "--residual", "1", "--out", str(tmp_path / "sir")]) == 2
     assert "SIR takes no pose residual" in capsys.readouterr().err

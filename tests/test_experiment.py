@@ -118,6 +118,11 @@ def test_experiment_end_to_end(sequences, tmp_path):
         "gpdm-2d": ("GPDM", 2), "gpdm-3d": ("GPDM", 3), "gle-3d": ("SpectralEmbedding", 3)}
     assert results["dynamics"]["gpapf"]["0.class"] == "GPDMLatentDynamics"
     assert set(results["velocity"]) == {"mrpf", "latentpf", "glegbpf"} and results["velocity"]["mrpf"]["entries"] == 6
+    # The ground prior is on: its clearance is the validation walk's stance ankle (8 cm) or the
+    # first test frame's lowest ankle, whichever is lower.
+    ground = saved["ground_prior"]["walk.npz"]
+    assert ground["validation_clearance_m"] == pytest.approx(0.08, abs=0.005)
+    assert ground["clearance_m"] <= ground["validation_clearance_m"] + 1e-6 and ground["tolerance_m"] == pytest.approx(0.01)
 
 
 @pytest.mark.slow

@@ -1,5 +1,6 @@
 """Embedded synthetic data: procedural gait for synthetic subjects, and multi-view scenes."""
 
+from ._gait import ANKLE_HEIGHT as ANKLE_HEIGHT
 from ._gait import GAITS as GAITS
 from ._gait import SUBJECTS as SUBJECTS
 from ._gait import GaitParameters as GaitParameters

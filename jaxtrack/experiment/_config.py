@@ -37,6 +37,9 @@ class ExperimentConfig:
             ``fold_in(key(seed), i)``.
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
+        ground_prior: multiply every tracker's likelihood by the ground plane's prior, the feet
+            kept out of the floor (``jaxtrack.likelihood.GroundPlanePrior``; the floor at world
+            z = 0, the ankle's clearance above it fitted on the validation motion).
         resolution: (width, height) to track at: the test silhouettes are block-averaged down
             to it and the cameras rescaled (None: as recorded).
         pixel_samples: score 000 eq. 12 on this many stratified sample pixels per view and
@@ -71,6 +74,7 @@ class ExperimentConfig:
     frames: int | None = None
     seed: int = 0
     calibrate_shape: bool = False
+    ground_prior: bool = True
     resolution: tuple[int, int] | None = None
     pixel_samples: int | None = None
     refine_steps: int = 0

@@ -22,12 +22,14 @@ from ..image import downsample_silhouettes
 from ..likelihood import suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
+    add_ground_prior,
     build_tracker,
     check_frame_rates,
     check_test_sequence,
     fit_manifold,
     fit_tracker,
     get_tracker,
+    motion_clearance,
     motion_data,
     prepare_test,
     sequence_poses,
@@ -120,7 +122,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
         entries carry a velocity and its fitted spreads), "residual" (per tracker that carries an
         off-manifold pose residual, ``config.residual_of``: its scale and fitted step scales),
-        "shape_calibration" (per test sequence, with ``config.calibrate_shape``),
+        "shape_calibration" (per test sequence, with ``config.calibrate_shape``), "ground_prior"
+        (per test sequence, with ``config.ground_prior``: the ankle's clearance used, metres, that of
+        the validation motion, the tolerance and the floor's height),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
         per-frame curve (mean over the runs, and each run's), per-part errors, frames/s, the
         mean ESS and the degenerate fraction)
@@ -149,7 +153,14 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
 
     results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
                "residual": {}, "sequences": {},
-               "estimates": {}, "shape_calibration": {}}
+               "estimates": {}, "shape_calibration": {}, "ground_prior": {}}
+    if config.ground_prior:
+        clearance = motion_clearance(validation, validation_poses)
+        scenes = [add_ground_prior(scene, clearance) for scene in scenes]
+        for scene, name in zip(scenes, test_names):
+            prior = scene.ground_prior
+            results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": clearance,
+                                             "tolerance_m": float(prior.tolerance), "floor_height_m": float(prior.floor_height)}
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
     for kind, latent_dim in config.manifold_specs:

@@ -1,6 +1,7 @@
 """Observation likelihoods behind one interface (``AbstractLikelihood``): the bidirectional
 silhouette likelihood of paper 000 eq. 12 (dense, windowed, on sampled pixels, or at a coarser
-resolution), sums of likelihoods, and plain functions."""
+resolution), sums of likelihoods, plain functions, and the ground plane as a pose prior that
+multiplies any of them."""
 
 from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
@@ -11,6 +12,9 @@ from ._calibration import calibrate_shape as calibrate_shape
 from ._coarse import CoarseSilhouetteLikelihood as CoarseSilhouetteLikelihood
 from ._coarse import block_downsample as block_downsample
 from ._coarse import coarsen_likelihood as coarsen_likelihood
+from ._ground import GroundPlanePrior as GroundPlanePrior
+from ._ground import ground_clearance as ground_clearance
+from ._ground import make_ground_prior as make_ground_prior
 from ._sampled import PixelSample as PixelSample
 from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
 from ._sampled import default_band as default_band

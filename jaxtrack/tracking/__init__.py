@@ -7,6 +7,7 @@ from ._builtin import BUILTIN_RECIPES as BUILTIN_RECIPES
 from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
 from ._pipeline import TestScene as TestScene
+from ._pipeline import add_ground_prior as add_ground_prior
 from ._pipeline import build_tracker as build_tracker
 from ._pipeline import check_frame_rates as check_frame_rates
 from ._pipeline import check_model_layout as check_model_layout
@@ -15,6 +16,7 @@ from ._pipeline import fit_manifold as fit_manifold
 from ._pipeline import fit_tracker as fit_tracker
 from ._pipeline import fit_velocity as fit_velocity
 from ._pipeline import ground_truth_joints as ground_truth_joints
+from ._pipeline import motion_clearance as motion_clearance
 from ._pipeline import motion_data as motion_data
 from ._pipeline import prepare_test as prepare_test
 from ._pipeline import sequence_poses as sequence_poses

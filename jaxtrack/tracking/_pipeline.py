@@ -22,7 +22,15 @@ from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
-from ..likelihood import SampledSilhouetteLikelihood, calibrate_shape, check_silhouettes, make_silhouette_likelihood, sample_frames
+from ..likelihood import (
+    SampledSilhouetteLikelihood,
+    calibrate_shape,
+    check_silhouettes,
+    ground_clearance,
+    make_ground_prior,
+    make_silhouette_likelihood,
+    sample_frames,
+)
 from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm
 from ._registry import DEFAULT_LATENT_DIMS, MANIFOLD_KINDS, SPECTRAL_MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
 
@@ -191,6 +199,7 @@ class TestScene:
     truth_joints: np.ndarray  # (T, J, 3)
     body: object
     shape_calibration: object = None  # a ShapeCalibration when the body was calibrated
+    ground_prior: object = None  # the GroundPlanePrior the likelihood includes, if any (``add_ground_prior``)
 
     @property
     def num_frames(self) -> int:
@@ -235,6 +244,24 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE),
         truth_poses=truth_poses, truth_joints=truth, body=body, shape_calibration=report,
     )
+
+
+def motion_clearance(sequences, poses, *, floor_height: float = 0.0) -> float:
+    """The ankle's clearance above the floor (``likelihood.ground_clearance``, metres) in
+    motion sequences with their (T, D) ``poses`` (from ``sequence_poses``): the files' ``joints3d``,
+    else forward kinematics with each sequence's own skeleton."""
+    joints = [ground_truth_joints(s, p, s.body(dtype=TRACKING_DTYPE).skeleton)
+              for s, p in zip(sequences, poses)]
+    return ground_clearance(joints, HUMANEVA_JOINTS, floor_height=floor_height)
+
+
+def add_ground_prior(scene: TestScene, clearance: float, *, floor_height: float = 0.0, tolerance: float | None = None) -> TestScene:
+    """The scene with its likelihood times the ground plane's prior (``likelihood.GroundPlanePrior``)
+    for its body: ``clearance`` (e.g. ``motion_clearance`` of the validation motion), lowered to
+    the initial pose's lowest ankle where that is lower, so the known start is never penalised."""
+    options = {} if tolerance is None else {"tolerance": tolerance}
+    prior = make_ground_prior(scene.body.skeleton, clearance, floor_height=floor_height, **options).allowing(scene.initial_pose)
+    return dataclasses.replace(scene, likelihood=scene.likelihood + prior, ground_prior=prior)
 
 
 def track(tracker, key: PRNGKeyArray, scene: TestScene, *, chunk_frames: int | None = None, on_chunk=None):
@@ -330,12 +357,13 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
                    calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
-                   on_chunk=None, pixel_samples: int | None = None, residual: float | None = None):
+                   on_chunk=None, pixel_samples: int | None = None, residual: float | None = None, ground_prior: bool = True):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
     (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``; ``residual`` None:
     its own pose residual, ``TrackerRecipe.residual``); ``chunk_frames``
     and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``pixel_samples``
-    as for ``prepare_test``.
+    as for ``prepare_test``; ``ground_prior``: the likelihood times the ground plane's prior
+    (``add_ground_prior``), its clearance that of the validation motion.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
@@ -356,7 +384,10 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     key = jax.random.key(seed)
     scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples)
     starts = header.get("sequence_starts")
-    motion = motion_data([], [sequence_poses(validation, "validation", key=key)], model, None if starts is None else tuple(starts))
+    validation_poses = sequence_poses(validation, "validation", key=key)
+    if ground_prior:
+        scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses]))
+    motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
                             velocity_from=motion.validation if recipe.velocity_for(velocity) else None,
