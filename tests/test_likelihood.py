@@ -264,10 +264,11 @@ def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
 def test_coarse_likelihood_scores_the_block_averaged_silhouettes_on_resized_cameras(scene, getkey):
     """``coarsen_likelihood``: factor 1 is the likelihood itself (to rounding); factor 2 equals the
     silhouette likelihood of the half-size rig on the silhouettes ``jaxtrack.image`` downsamples
-    (the same block average and threshold), its window shrunk with the image; bad factors and a likelihood
-    that is not the silhouette one are refused."""
+    (the same block average and threshold), its window shrunk with the image; the silhouettes
+    plus the ground prior (the experiment's default) coarsen the silhouettes and keep the prior;
+    bad factors and a likelihood that is not the silhouette one are refused."""
     from jaxtrack.image import downsample_silhouettes
-    from jaxtrack.likelihood import FunctionLikelihood, coarsen_likelihood
+    from jaxtrack.likelihood import FunctionLikelihood, coarsen_likelihood, make_ground_prior
 
     motion, rig, _seq, observed = scene
     fine_rig = rig.resized(80, 60)
@@ -281,6 +282,13 @@ def test_coarse_likelihood_scores_the_block_averaged_silhouettes_on_resized_came
     coarse = coarsen_likelihood(make_silhouette_likelihood(motion.body, fine_rig, window=(40, 24)), 2)
     assert coarse.coarse.rig.image_size[0] == (40, 30) and coarse.coarse.window == (21, 13)
     np.testing.assert_allclose(score(coarse, poses, observed), score(reference, poses, half), rtol=1e-10)
+    prior = make_ground_prior(motion.body.skeleton, 0.2)  # above the ankles: every pose pays
+    assert float(jnp.min(-score(prior, poses, observed))) > 1.0
+    grounded = coarsen_likelihood(make_silhouette_likelihood(motion.body, fine_rig, window=(40, 24)) + prior, 2)
+    assert grounded.terms[1] is prior
+    np.testing.assert_allclose(score(grounded, poses, observed), score(reference, poses, half) + score(prior, poses, half), rtol=1e-10)
+    with pytest.raises(TypeError, match="every term of this SumLikelihood ignores the frame"):
+        coarsen_likelihood(prior + prior, 2)
     with pytest.raises(ValueError, match="a factor of 3x3 does not divide the 80x60 images"):
         coarsen_likelihood(fine, 3)
     with pytest.raises(ValueError, match="factor must be a positive integer"):

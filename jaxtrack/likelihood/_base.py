@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -20,7 +20,13 @@ class AbstractLikelihood(eqx.Module):
     Subclasses implement ``log_likelihood``; calling the module is the same thing. Every
     filter scores its particles through this interface (after mapping its states to poses).
     ``a + b`` is the ``SumLikelihood`` of two likelihoods (independent cues).
+
+    ``reads_observation`` is False for a prior on the pose that ignores the frame (e.g. the
+    ground plane's): such a term is kept as it is where the observation is transformed (the
+    coarse-to-fine likelihood).
     """
+
+    reads_observation: ClassVar[bool] = True
 
     @abc.abstractmethod
     def log_likelihood(self, poses: Float[Array, "particles dofs"], observation: Any) -> Float[Array, " particles"]:

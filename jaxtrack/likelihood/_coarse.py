@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from .._custom_types import Array, Float
 from ..camera import image_shape
-from ._base import AbstractLikelihood
+from ._base import AbstractLikelihood, SumLikelihood
 from ._silhouette import SilhouetteLikelihood
 
 
@@ -57,18 +57,27 @@ class CoarseSilhouetteLikelihood(AbstractLikelihood):
         return self.coarse.log_likelihood(poses, block_downsample(observed.astype(poses.dtype), self.factor))
 
 
-def coarsen_likelihood(likelihood: AbstractLikelihood, factor: int | tuple[int, int] = 2) -> CoarseSilhouetteLikelihood:
+def coarsen_likelihood(likelihood: AbstractLikelihood, factor: int | tuple[int, int] = 2) -> AbstractLikelihood:
     """The ``CoarseSilhouetteLikelihood`` of ``likelihood`` with its images reduced by ``factor``
     (one integer for both axes, or (fx, fy)): the same body, scale and edge width (now in coarse
     pixels), the rig ``resized``, the evaluation window shrunk with the image (one pixel of margin).
+    A ``SumLikelihood`` (e.g. the silhouettes plus the ground plane's prior, the experiment's
+    default) has each silhouette term coarsened and each term that ignores the frame
+    (``reads_observation`` False) kept as it is.
 
     Raises:
-        TypeError: ``likelihood`` is not a ``SilhouetteLikelihood`` (the sampled likelihood for
-            large images already scores a fixed number of pixels).
+        TypeError: ``likelihood`` is neither a ``SilhouetteLikelihood`` nor a sum of them and
+            priors (the sampled likelihood for large images already scores a fixed number of
+            pixels; another cue would need its own coarse version).
         ValueError: the factor does not divide the image size.
     """
+    if isinstance(likelihood, SumLikelihood):
+        terms = tuple(term if not term.reads_observation else coarsen_likelihood(term, factor) for term in likelihood.terms)
+        if all(not term.reads_observation for term in likelihood.terms):
+            raise TypeError("coarse-to-fine needs a silhouette term; every term of this SumLikelihood ignores the frame")
+        return SumLikelihood(terms)
     if not isinstance(likelihood, SilhouetteLikelihood):
-        raise TypeError(f"coarse-to-fine needs a SilhouetteLikelihood, got {type(likelihood).__name__}")
+        raise TypeError(f"coarse-to-fine needs a SilhouetteLikelihood (or a sum of them and priors), got {type(likelihood).__name__}")
     fx, fy = (factor, factor) if isinstance(factor, int) else tuple(factor)
     if not all(isinstance(f, int) and not isinstance(f, bool) and f >= 1 for f in (fx, fy)):
         raise ValueError(f"factor must be a positive integer or two, got {factor!r}")

@@ -21,6 +21,7 @@ The prior ignores the observation, so it composes with any likelihood by ``+``
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -44,6 +45,8 @@ class GroundPlanePrior(AbstractLikelihood):
         tolerance: ``sigma``, metres.
         floor_height: ``h``, the floor's world z, metres.
     """
+
+    reads_observation: ClassVar[bool] = False
 
     skeleton: Skeleton
     clearance: Float[Array, ""]
