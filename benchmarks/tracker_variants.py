@@ -11,9 +11,11 @@ protocol (every option of that script applies):
 - ``mrpf-final100``, ``latentpf-final100``: the tracker keeps 400 particles and carries them on;
   a final full-pose layer of 100 particles, drawn from them by weight, gives the estimate (the
   split of GPAPF's budget, 4 x 100 + 100);
-- ``mrpf-mixture``, ``gpapf-mixture``, ``latentpf-mixture``: the tracker with its GPDM latent
-  noise refitted on the validation motion (``latent_noise="validation"``: a scale mixture of
-  the GPDM's predictive sd, ``jaxtrack.dynamics._latent_noise``), everything else its own.
+- ``mrpf-mixture``, ``latentpf-mixture``: the tracker with its GPDM latent noise refitted on
+  the validation motion (``latent_noise="validation"``: a scale mixture of the GPDM's
+  predictive sd, ``jaxtrack.dynamics._latent_noise``), everything else its own. GPAPF has it by
+  default (since 2026-11-25); ``gpapf-gpdm-noise`` is GPAPF with the GPDM's own noise (001's,
+  its earlier default).
 - ``apf-partitioned``, ``gpapf-partitioned``: hierarchical partitioned annealing (Deutscher and
   Reid; ``APF(partitions=...)``), the schedule set before any measurement. APF's layers after
   the transition perturb the root and the spine, then the legs, then the arms and the neck,
@@ -178,8 +180,9 @@ def _mrpf_mixture(key, motion):
                                latent_noise="validation")
 
 
-def _gpapf_mixture(key, motion):
-    return _latent_mixture(key, motion), get_tracker("gpapf").fit(key, motion)[1]
+def _gpapf_gpdm_noise(key, motion):
+    latent = fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts, latent_noise="gpdm")
+    return latent, get_tracker("gpapf").fit(key, motion)[1]
 
 
 GLE_START_STEPS = 300  # the experiment's default fit steps
@@ -211,7 +214,9 @@ VARIANTS = [
     dataclasses.replace(get_tracker("gpapf"), name="gpapf-coarse", label="GPAPF+coarse", build=_build_gpapf_coarse,
                         description="GPAPF, its first half of the annealing layers at half the resolution"),
     _mixture("mrpf", _mrpf_mixture),
-    _mixture("gpapf", _gpapf_mixture),
+    dataclasses.replace(get_tracker("gpapf"), name="gpapf-gpdm-noise", label="GPAPF+GPDM noise", manifolds=("gpdm",),
+                        fit=_gpapf_gpdm_noise, description="GPAPF with the GPDM's own predictive variance (001; its default "
+                        "before 2026-11-25)"),
     _mixture("latentpf", _latent_mixture),
     _gle_start("mrpf"),
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,

@@ -24,6 +24,7 @@ from jaxtrack.dynamics import (
     fit_gpdm_latent_dynamics,
     fit_latent_dynamics,
     fit_mrpf_transition,
+    fit_pose_random_walk,
     fit_root_velocity,
     fit_scale_mixture,
     fit_state_velocity,
@@ -439,6 +440,20 @@ def test_noise_fitted_on_validation_motion(gpdm_prior, walk, getkey):
     np.testing.assert_allclose(float(mrpf.latent_noise.core), float(noise.core), rtol=1e-6)
     # Fewer validation steps than the fit needs: the GPDM's own noise.
     assert float(fit_gpdm_latent_dynamics(gpdm_prior, walk[50:55], latent_noise="validation").noise.jump_probability) == 0.0
+
+
+def test_gpapf_fits_its_latent_noise_on_the_validation_motion(gpdm_prior, walk, getkey):
+    """GPAPF's default latent dynamics carry the mixture fitted on the validation motion (its
+    default since 2026-11-25), not the GPDM's own noise, and its final layer is unchanged."""
+    from jaxtrack.tracking import MotionData, get_tracker
+
+    motion = MotionData(training=(np.asarray(walk[:45]),), validation=(np.asarray(walk[45:]),), manifold=gpdm_prior)
+    latent, final = get_tracker("gpapf").fit(getkey(), motion)
+    expected = fit_gpdm_latent_dynamics(gpdm_prior, walk[45:], latent_noise="validation").noise
+    for field in ("core", "jump", "jump_probability"):
+        np.testing.assert_allclose(float(getattr(latent.noise, field)), float(getattr(expected, field)), rtol=1e-12)
+    assert float(latent.noise.core) != 1.0 or float(latent.noise.jump_probability) != 0.0  # not the GPDM's own
+    np.testing.assert_allclose(np.asarray(final.scales), 0.5 * np.asarray(fit_pose_random_walk([walk[45:]]).scales), rtol=1e-12)
 
 
 @pytest.mark.slow

@@ -1,7 +1,8 @@
 """GPAPF (001 Alg. 2-3): annealing over (global entries, latent point) with ``layers - 1``
 layers, then the final full-pose layer (001 Alg. 3) with half the pose random walk's scales.
 On a GPDM (its paper's manifold, the default) the latent points follow the GPDM's predictive
-dynamics; on a manifold without dynamics, a latent random walk."""
+dynamics mean, with its predictive sd scaled by the two-component mixture fitted on the
+validation motion (``LATENT_NOISE``); on a manifold without dynamics, a latent random walk."""
 
 import jax.numpy as jnp
 
@@ -12,9 +13,17 @@ from ._registry import TrackerRecipe
 FINAL_LAYER_SCALE = 0.5  # the final layer's steps, relative to the pose random walk's
 
 
+# The GPDM's latent noise refitted on the validation motion, as every other noise scale is
+# (dynamics._latent_noise): 001 uses the GPDM's own predictive variance ("gpdm"). Over 20 runs
+# on both Bandai runs (the tuned 005 and the held-out 006; 4 and 3 views) the fitted mixture
+# took GPAPF's drift ratio from 1.36-1.49 to 0.91-1.11 and its lost runs from 1-9 of 20 to 0-3;
+# even elsewhere (README, "The floor", GPAPF on the held-out Bandai run).
+LATENT_NOISE = "validation"
+
+
 def fit(key, motion):
     del key
-    latent = fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts)
+    latent = fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts, latent_noise=LATENT_NOISE)
     pose = fit_pose_random_walk(list(motion.validation))
     return latent, PoseRandomWalk(FINAL_LAYER_SCALE * jnp.asarray(pose.scales))
 
