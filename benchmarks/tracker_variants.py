@@ -24,6 +24,10 @@ protocol (every option of that script applies):
   (``make_gpdm(..., init="gle")``) instead of the principal components, which fold each gait
   cycle of the demo's motion into a thin loop whose two sides lie side by side (``GLE_START_STEPS`` fit
   steps and the optimiser, the experiment's defaults, whatever ``--fit-steps`` says).
+- ``mrpf-weight1``, ``mrpf-weight2``, ``mrpf-weight8``: MRPF with eq. 30's factor raised to
+  the power 1 (the maximum-likelihood fit as it is, MRPF's default before 2026-11-25), 2 or 8
+  instead of its default 4 (``fit_mrpf_transition(..., manifold_weight=...)``). Run on the
+  validation takes (``real_motion.py --sequences validation``) they chose the default.
 - ``apf-coarse``, ``gpapf-coarse``: coarse-to-fine annealing (``APF(coarse_likelihood=...,
   coarse_layers=...)`` with ``likelihood.coarsen_likelihood``), the schedule set before any
   measurement: the first half of the annealing layers (rounded down: 2 of APF's 5, 2 of
@@ -45,7 +49,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton, joint_angles
+from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton, joint_angles, mirrored_groups
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
 from jaxtrack.likelihood import AbstractLikelihood, coarsen_likelihood
@@ -180,6 +184,21 @@ def _mrpf_mixture(key, motion):
                                latent_noise="validation")
 
 
+MIRRORED = mirrored_groups(humaneva_skeleton().dof_names[3:])  # MRPF's tied scales (the real takes are HumanEva's)
+
+
+def _manifold_weight(weight):
+    """MRPF with eq. 30's factor raised to ``weight`` instead of its default."""
+    base = get_tracker("mrpf")
+
+    def fit(key, motion):
+        return fit_mrpf_transition(motion.manifold, list(motion.validation), key=key, proposal="product",
+                                   latent_proposal="gpdm", tied=MIRRORED, manifold_weight=weight)
+
+    return dataclasses.replace(base, name=f"mrpf-weight{weight:g}", label=f"MRPF, manifold^{weight:g}", fit=fit,
+                               manifolds=("gpdm",), description=f"MRPF with eq. 30's factor to the power {weight:g}")
+
+
 def _gpapf_gpdm_noise(key, motion):
     latent = fit_latent_dynamics(motion.manifold, list(motion.validation), motion.training_starts, latent_noise="gpdm")
     return latent, get_tracker("gpapf").fit(key, motion)[1]
@@ -218,6 +237,7 @@ VARIANTS = [
                         fit=_gpapf_gpdm_noise, description="GPAPF with the GPDM's own predictive variance (001; its default "
                         "before 2026-11-25)"),
     _mixture("latentpf", _latent_mixture),
+    *(_manifold_weight(weight) for weight in (1.0, 2.0, 8.0)),
     _gle_start("mrpf"),
     TrackerRecipe("mrpf-final", "MRPF+final", "MRPF, then a final full-pose layer for the estimate", _with_final(_mrpf), _build_final,
                   needs_manifold=True, manifold="gpdm", manifolds=("gpdm",), velocity=True, latent_dim=MRPF_DIM),

@@ -486,6 +486,33 @@ def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
         fit_mrpf_transition(prior, poses[40:], key=getkey(), tied=mirrored + 1)
 
 
+
+def test_manifold_weight_raises_eq30_to_its_power(walk_prior, getkey):
+    """``manifold_weight`` lambda: the same fit (same key) with eq. 30's scales over sqrt(lambda),
+    eq. 29's unchanged; so the transition's density is eq. 29 times eq. 30 to the power lambda,
+    normalised (the draw's mean moves towards mu(z) by the pull s_xx^2 / (s_xx^2 + s_zx^2 / lambda));
+    scales at the floor stay there.
+    Non-positive or non-finite weights are refused before anything is fitted."""
+    from jaxtrack.dynamics import fit_mrpf_transition
+
+    prior, poses = walk_prior
+    key = getkey()
+    plain = fit_mrpf_transition(prior, poses[40:], key=key, samples=8)
+    weighted = fit_mrpf_transition(prior, poses[40:], key=key, samples=8, manifold_weight=4.0)
+    np.testing.assert_array_equal(weighted.s_xx, plain.s_xx)
+    np.testing.assert_allclose(weighted.s_zx, np.maximum(plain.s_zx / 2.0, 1e-3), rtol=1e-12)
+    previous = jnp.asarray(poses[40:43])
+    mean_mu = prior.decode_mean(prior.encode(jnp.asarray(poses[41:44, 6:])))
+    g = prior.global_dims
+    for transition in (plain, weighted):
+        mean, sd = transition._product(previous, mean_mu)
+        xx, zx = plain.s_xx[g:] ** 2, transition.s_zx**2  # the normalised product of eq. 29 and eq. 30 ** lambda, by hand
+        np.testing.assert_allclose(mean[:, g:], (zx * previous[:, g:] + xx * mean_mu) / (xx + zx), rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(sd[g:], np.sqrt(xx * zx / (xx + zx)), rtol=1e-6)
+    for bad in (0.0, -1.0, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="manifold_weight must be positive and finite"):
+            fit_mrpf_transition(prior, poses[40:], key=key, manifold_weight=bad)
+
 # ----------------------------------------------------------------------------- the SMC layer and its pieces
 
 def test_smc_layer_weights_are_tempered_likelihood_plus_correction(getkey):
