@@ -169,7 +169,7 @@ def _experiment(args) -> int:
         fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser,
         likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
         calibrate_shape=args.calibrate_shape, ground_prior=args.ground_prior, resolution=args.resolution,
-        pixel_samples=args.pixel_samples,
+        pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=_body_choice(args), height=args.height,
         refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
         residual=args.residual,
     )
@@ -187,7 +187,20 @@ def _experiment(args) -> int:
     print()
     print(results_table(results))
     print(f"wrote {os.path.join(args.out, 'results.json')}, table.md, error_curves.png")
+    if results["refused"]:
+        print("jaxtrack experiment: error: " + "; ".join(f"{m} refused: {why}" for m, why in results["refused"].items())
+              + " (the other methods' results are written)", file=sys.stderr)
+        return 2
     return 0
+
+
+def _body_choice(args) -> str:
+    """``--body``, or "calibrate" with ``--calibrate-body``."""
+    if args.calibrate_body:
+        if args.body not in (None, "calibrate"):
+            raise ValueError(f"--calibrate-body and --body {args.body} contradict each other")
+        return "calibrate"
+    return args.body or "auto"
 
 
 def _track(args) -> int:
@@ -202,6 +215,11 @@ def _track(args) -> int:
     from .tracking import get_tracker, track_sequence
 
     get_tracker(args.method)
+    body = _body_choice(args)
+    if args.height is not None:
+        from .body import check_height
+
+        check_height(args.height, "--height")
     args.out = check_output(args.out, [args.test, args.validation, args.model], suffix=".npz")
     sequence = load_sequence(args.test)
     validation = load_sequence(args.validation)
@@ -217,7 +235,8 @@ def _track(args) -> int:
     poses, joints, info = track_sequence(
         sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        ground_prior=args.ground_prior, refine_steps=args.refine_steps, velocity=args.velocity, pixel_samples=args.pixel_samples,
+        ground_prior=args.ground_prior, refine_steps=args.refine_steps, velocity=args.velocity,
+        pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=body, height=args.height,
         residual=args.residual,
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
@@ -276,6 +295,18 @@ def _methods_help() -> str:
     from .tracking import available_trackers, get_tracker
 
     return "; ".join(f"{name}: {get_tracker(name).description}" for name in available_trackers())
+
+
+def _body_arguments(parser, whose: str) -> None:
+    parser.add_argument("--body", choices=("auto", "joints", "default", "calibrate"),
+                        help=f"{whose}'s body: auto (default): the file's skeleton, else the one inverse kinematics fits to its "
+                             "joints3d, else a training or validation file's of the same subject, else calibrated from the first "
+                             "frames' silhouettes; joints: fitted to the joints even over the file's skeleton; default: the "
+                             "default body; calibrate: limb lengths and radii always fitted to the first frames' silhouettes")
+    parser.add_argument("--calibrate-body", action="store_true", help="the same as --body calibrate")
+    parser.add_argument("--height", type=float, metavar="M",
+                        help="the subject's standing height in metres: the body calibration's prior (the default proportions "
+                             "scaled to it)")
 
 
 def load_plugins(argv) -> None:
@@ -398,13 +429,15 @@ def build_parser() -> argparse.ArgumentParser:
                             help="keep the feet out of the floor (world z = 0): every tracker's likelihood times a prior on the "
                                  "ankles' height, their clearance fitted on the validation motion (--no-ground-prior: the silhouettes "
                                  "alone) (default: on)")
+    _body_arguments(experiment, "each test sequence")
     experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
                             help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                                  "(e.g. 80x60 for 320x240 data)")
     experiment.add_argument("--pixel-samples", type=int, metavar="N",
                             help="score the silhouettes on N stratified sample pixels per view and frame (outline band, "
                                  "interior, near and far background) instead of every pixel: a cost independent of the image "
-                                 "size (e.g. 2048 for 320x240 or 640x480 data)")
+                                 "size; 0: every pixel (default: by the image size tracked at: every pixel up to 160x120, 2048 "
+                                 "up to 320x240, 4096 above; the choice is printed)")
     experiment.add_argument("--refine-steps", type=int, default=0,
                             help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
@@ -434,13 +467,15 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
     track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
+    _body_arguments(track, "the test sequence")
     track.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
                        help="keep the feet out of the floor (world z = 0): the likelihood times a prior on the ankles' height, "
                             "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
                             "(default: on)")
     track.add_argument("--pixel-samples", type=int, metavar="N",
                        help="score the silhouettes on N stratified sample pixels per view and frame instead of every pixel "
-                            "(a cost independent of the image size; e.g. 2048 for 320x240 or 640x480 data)")
+                            "(a cost independent of the image size); 0: every pixel (default: by the image size: every pixel up "
+                            "to 160x120, 2048 up to 320x240, 4096 above; the choice is printed)")
     track.add_argument("--refine-steps", type=int, default=0,
                        help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
                                  f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")

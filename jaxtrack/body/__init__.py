@@ -1,5 +1,10 @@
 """Body model: kinematic tree, pose vectors, joint limits, forward kinematics and capsule shape."""
 
+from ._anthropometry import DEFAULT_STATURE as DEFAULT_STATURE
+from ._anthropometry import check_height as check_height
+from ._anthropometry import limb_lengths_for_height as limb_lengths_for_height
+from ._anthropometry import stature as stature
+from ._ik import LIMB_SEGMENTS as LIMB_SEGMENTS
 from ._ik import IKResult as IKResult
 from ._ik import fit_limb_lengths as fit_limb_lengths
 from ._ik import inverse_kinematics as inverse_kinematics

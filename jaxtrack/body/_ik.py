@@ -27,7 +27,7 @@ from ._skeleton import HUMANEVA_JOINTS, Skeleton, humaneva_skeleton
 
 PITCH_PRIOR = 0.05  # metres of residual per radian of pelvis pitch
 
-_SEGMENTS = {
+LIMB_SEGMENTS: dict[str, list[tuple[str, str]]] = {  # limb -> its (parent joint, joint) bones, left and right tied
     "spine": [("pelvis", "thorax")],
     "neck": [("thorax", "head")],
     "shoulder": [("thorax", "lshoulder"), ("thorax", "rshoulder")],
@@ -46,7 +46,7 @@ def fit_limb_lengths(joints) -> dict[str, float]:
         raise ValueError(f"joints must be (T, 15, 3) HumanEva joint positions, got {joints.shape}")
     index = {n: i for i, n in enumerate(HUMANEVA_JOINTS)}
     lengths = {}
-    for limb, pairs in _SEGMENTS.items():
+    for limb, pairs in LIMB_SEGMENTS.items():
         values = [np.linalg.norm(joints[:, index[b]] - joints[:, index[a]], axis=-1) for a, b in pairs]
         lengths[limb] = float(np.median(np.concatenate(values)))
         if not lengths[limb] > 1e-3:

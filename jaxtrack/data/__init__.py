@@ -13,3 +13,5 @@ from ._scene import SilhouetteNoise as SilhouetteNoise
 from ._scene import build_scene as build_scene
 from ._scene import motion_sequence as motion_sequence
 from ._scene import scene_from_sequence as scene_from_sequence
+from ._solid_body import SolidBody as SolidBody
+from ._solid_body import render_solid_silhouettes as render_solid_silhouettes

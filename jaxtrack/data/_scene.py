@@ -28,6 +28,7 @@ from ..camera import CameraRig, check_in_front, image_shape, pixel_grid, project
 from ..io import Sequence
 from ..render import ProjectedCapsules, hard_from_capsules, project_capsules
 from ._gait import SyntheticMotion
+from ._solid_body import SolidBody, render_solid_silhouettes
 
 _MAX_DISKS = 6  # static upper bound on holes / blobs drawn per frame and view
 
@@ -131,22 +132,26 @@ def _boundary(mask):
     return dilated & ~eroded
 
 
-def _noisy_frame(key, body, rig, pose, joints, noise: dict, ankle_index):
-    """(views, H, W) bool silhouettes of one frame with background-subtraction noise."""
+def _noisy_frame(key, body, rig, pose, joints, noise: dict, ankle_index, mask=None):
+    """(views, H, W) bool silhouettes of one frame with background-subtraction noise; ``mask``
+    (views, H, W): the body already rendered (another renderer's), else the capsules are."""
     dtype = pose.dtype
     height, width = image_shape(rig)
     k_radius, k_views = jax.random.split(key)
-    jitter = 1.0 + noise["radius_jitter"] * jax.random.normal(k_radius, body.radii.shape, dtype)
-    caps = project_capsules(body, rig, pose)
-    caps = caps._replace(radius=caps.radius * jnp.maximum(jitter, 0.3))
     shadow = _shadow_capsules(rig, joints, ankle_index, noise, dtype)
-    caps = ProjectedCapsules(
-        start=jnp.concatenate([caps.start, shadow.start], axis=-2),
-        end=jnp.concatenate([caps.end, shadow.end], axis=-2),
-        radius=jnp.concatenate([caps.radius, shadow.radius], axis=-1),
-        in_front=caps.in_front & shadow.in_front,
-    )
-    clean = hard_from_capsules(caps, height, width)  # (views, H, W)
+    if mask is None:
+        jitter = 1.0 + noise["radius_jitter"] * jax.random.normal(k_radius, body.radii.shape, dtype)
+        caps = project_capsules(body, rig, pose)
+        caps = caps._replace(radius=caps.radius * jnp.maximum(jitter, 0.3))
+        caps = ProjectedCapsules(
+            start=jnp.concatenate([caps.start, shadow.start], axis=-2),
+            end=jnp.concatenate([caps.end, shadow.end], axis=-2),
+            radius=jnp.concatenate([caps.radius, shadow.radius], axis=-1),
+            in_front=caps.in_front & shadow.in_front,
+        )
+        clean = hard_from_capsules(caps, height, width)  # (views, H, W)
+    else:
+        clean = mask | hard_from_capsules(shadow, height, width)
 
     def corrupt(k, mask):
         k_flip, k_holes, k_blobs = jax.random.split(k, 3)
@@ -163,10 +168,12 @@ def _noisy_frame(key, body, rig, pose, joints, noise: dict, ankle_index):
 
 
 @eqx.filter_jit
-def _render_chunk(key, frame_ids, body, rig, poses, joints, noise, ankle_index):
+def _render_chunk(key, frame_ids, body, rig, poses, joints, noise, ankle_index, masks=None):
     """Noisy silhouettes (frames, views, H, W) of a chunk of frames; one compile per shape."""
     keys = jax.vmap(lambda f: jax.random.fold_in(key, f))(frame_ids)
-    return jax.vmap(lambda k, p, j: _noisy_frame(k, body, rig, p, j, noise, ankle_index))(keys, poses, joints)
+    if masks is None:
+        return jax.vmap(lambda k, p, j: _noisy_frame(k, body, rig, p, j, noise, ankle_index))(keys, poses, joints)
+    return jax.vmap(lambda k, p, j, m: _noisy_frame(k, body, rig, p, j, noise, ankle_index, m))(keys, poses, joints, masks)
 
 
 def build_scene(
@@ -177,6 +184,7 @@ def build_scene(
     *,
     chunk: int = 32,
     progress: bool = False,
+    solid: SolidBody | None = None,
 ) -> Sequence:
     """Render a motion into noisy multi-view silhouettes and pack everything as a ``Sequence``.
 
@@ -187,6 +195,11 @@ def build_scene(
         noise: background-subtraction noise settings (``NO_NOISE`` for clean silhouettes).
         chunk: frames rendered per jitted call.
         progress: show a progress bar.
+        solid: render the person as this ``SolidBody`` (ellipsoids ray-cast exactly: feet, an
+            elliptical torso, tapered limbs) instead of the motion's capsules, so that the test
+            data are not drawn by the tracker's own body model; the noise's radius jitter then
+            does not apply, the rest (shadows, flips, holes, blobs) does. The sequence keeps the
+            motion's ``skeleton_offsets`` and ``capsule_radii`` (drop them to hide the body).
 
     Raises:
         ValueError: if a camera is behind the body in some frame, or the body leaves a view
@@ -217,7 +230,8 @@ def build_scene(
         if size < chunk:  # pad the last chunk to keep one compiled shape
             pad = chunk - size
             ids, p, j = (jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) for x in (ids, p, j))
-        out.append(np.asarray(_render_chunk(key, ids, body, rig, p, j, noise_arrays, ankle_index))[:size])
+        masks = None if solid is None else jnp.asarray(render_solid_silhouettes(solid, rig, p))
+        out.append(np.asarray(_render_chunk(key, ids, body, rig, p, j, noise_arrays, ankle_index, masks))[:size])
     silhouettes = np.concatenate(out, axis=0).transpose(1, 0, 2, 3).astype(np.uint8)  # (C, T, H, W)
     area = silhouettes.sum(axis=(2, 3))
     if np.any(area == 0):

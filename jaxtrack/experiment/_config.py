@@ -5,9 +5,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from ..body import check_height
 from ..errors import ConfigurationError
 from ..manifold import OPTIMISERS
-from ..tracking import GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
+from ..tracking import BODY_CHOICES, GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,7 +45,17 @@ class ExperimentConfig:
             to it and the cameras rescaled (None: as recorded).
         pixel_samples: score 000 eq. 12 on this many stratified sample pixels per view and
             frame (``jaxtrack.likelihood.SampledSilhouetteLikelihood``) instead of every pixel
-            of the window: a cost independent of the image size (None: every pixel).
+            of the window: a cost independent of the image size (None or 0: every pixel;
+            "auto": by the image size tracked at, ``likelihood.default_pixel_samples``: every
+            pixel up to 160x120, 2048 up to 320x240, 4096 above).
+        body: the test subjects' bodies (``tracking.BODY_CHOICES``): "auto" (the file's
+            skeleton, else the one fitted to its joints, else a training or validation take's
+            of the same ``subject``, else calibrated from the first frames' silhouettes),
+            "joints" (fitted to the joints even over a file's skeleton), "default" (the default
+            body, never calibrated) or "calibrate" (limb lengths and radii always fitted to the
+            first frames' silhouettes, ``likelihood.calibrate_body``).
+        height: the test subjects' standing height in metres, the calibration's prior (None: the
+            default proportions, loosely).
         refine_steps: gradient-refined (MALA) moves per particle per frame after the weighting
             (``jaxtrack.filters.LangevinRefinement``), paid for out of ``budget`` at
             ``gradient_cost`` evaluations a gradient (fewer particles); 0 for none.
@@ -76,7 +87,9 @@ class ExperimentConfig:
     calibrate_shape: bool = False
     ground_prior: bool = True
     resolution: tuple[int, int] | None = None
-    pixel_samples: int | None = None
+    pixel_samples: int | str | None = "auto"
+    body: str = "auto"
+    height: float | None = None
     refine_steps: int = 0
     gradient_cost: float = GRADIENT_COST
     velocity: bool | None = None
@@ -101,10 +114,17 @@ class ExperimentConfig:
             raise ConfigurationError(f"likelihood_scale must be positive, got {self.likelihood_scale}")
         if self.resolution is not None and (len(self.resolution) != 2 or min(self.resolution) < 1):
             raise ConfigurationError(f"resolution must be (width, height) in pixels, got {self.resolution}")
-        if self.pixel_samples is not None and (isinstance(self.pixel_samples, bool) or not isinstance(self.pixel_samples, int)
-                                               or self.pixel_samples < 4):
-            raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum) or None, "
-                                     f"got {self.pixel_samples!r}")
+        if self.pixel_samples not in (None, 0, "auto") and (isinstance(self.pixel_samples, bool)
+                                                             or not isinstance(self.pixel_samples, int) or self.pixel_samples < 4):
+            raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum), 0 or None "
+                                     f"(every pixel) or 'auto', got {self.pixel_samples!r}")
+        if self.body not in BODY_CHOICES:
+            raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
+        if self.height is not None:
+            try:
+                check_height(self.height)
+            except ValueError as err:
+                raise ConfigurationError(str(err)) from None
         if self.residual is not None and (isinstance(self.residual, bool) or not isinstance(self.residual, (int, float))
                                           or not (math.isfinite(self.residual) and self.residual >= 0)):
             raise ConfigurationError(f"residual must be a scale >= 0 or None (each tracker's own), got {self.residual!r}")

@@ -22,11 +22,13 @@ def results_table(results: dict) -> str:
     """Markdown table in the layout of 000 Table 1: one row per test sequence, one column per
     method, ``mean (std)`` of the eq. 31 error in mm over the runs."""
     methods = list(results["config"]["methods"])
+    refused = results.get("refused", {})
     lines = ["| Sequence | " + " | ".join(method_label(m) for m in methods) + " |", "|---|" + "---:|" * len(methods)]
     for name, per_method in results["sequences"].items():
-        cells = [f"{per_method[m]['error_mm_mean']:.0f} ({per_method[m]['error_mm_std']:.0f})" if m in per_method else "not run"
-                 for m in methods]
+        cells = [f"{per_method[m]['error_mm_mean']:.0f} ({per_method[m]['error_mm_std']:.0f})" if m in per_method
+                 else "refused" if m in refused else "not run" for m in methods]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += [""] + [f"- {method_label(m)} refused: {why}" for m, why in refused.items()] if refused else []
     return "\n".join(lines) + "\n"
 
 

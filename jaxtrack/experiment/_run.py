@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+import warnings
 
 import equinox as eqx
 import jax
@@ -29,10 +30,11 @@ from ..tracking import (
     fit_manifold,
     fit_tracker,
     get_tracker,
+    method_problems,
     motion_clearance,
     motion_data,
     prepare_test,
-    sequence_poses,
+    subject_body,
     track,
     track_runs,
     tracker_index,
@@ -67,6 +69,16 @@ def dynamics_parameters(fitted) -> dict:
 
     visit(fitted, "")
     return out
+
+
+def _warn_unreachable(resolved, name: str, results: dict) -> None:
+    """Print (and record) a warning where a file's skeleton cannot reach its joints."""
+    bad = [] if resolved is None else resolved.unreachable()
+    if bad:
+        message = (f"{name}: the skeleton cannot reach the file's joints ({', '.join(bad)}): a score against this ground truth "
+                   "measures the file as much as the tracker")
+        results.setdefault("warnings", []).append(message)
+        print(f"warning: {message}")
 
 
 def manifold_label(kind: str, latent_dim: int) -> str:
@@ -126,8 +138,13 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         (per test sequence, with ``config.ground_prior``: the ankle's clearance used, metres, that of
         the validation motion, the tolerance and the floor's height),
         "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
-        per-frame curve (mean over the runs, and each run's), per-part errors, frames/s, the
-        mean ESS and the degenerate fraction)
+        per-frame curve (mean over the runs, and each run's), the error at frame 0 and the start
+        pose's, per-part errors, frames/s, the mean ESS and the degenerate fraction),
+        "bodies" (per test sequence, ``TestScene.body_summary``: where its body came from, its limb
+        lengths and radii, the calibration, the inverse kinematics' residual per joint),
+        "ik_residual_mm" (per file with joints, the residual's mean, max and per-joint figures),
+        "refused" (per method that could not run on these data, the reason: every other method
+        still runs), "warnings" (files whose skeleton cannot reach their joints)
         and "estimates" (first run's poses and joints).
     """
     config = ExperimentConfig() if config is None else config
@@ -142,45 +159,94 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     for seq, name in zip(test, test_names):
         check_test_sequence(seq, name)
     check_frame_rates([*train, *validation, *test], [*train_names, *validation_names, *test_names])
-    # Every test scene is built (and checked: silhouettes, cameras that see the person) before
-    # any fitting, so a bad last file fails in seconds, not after the fits and the first tracks.
+    # The training and validation takes' bodies and poses (each its own skeleton: the file's, or
+    # the one inverse kinematics fits to its joints), then every test scene, built and checked
+    # (silhouettes, cameras that see the person, its body) before any fitting, so a bad last file
+    # fails in seconds, not after the fits and the first tracks.
+    motion_subjects = {}
+    for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]:
+        resolved = subject_body(seq, name, key=ik_key)
+        if resolved.poses is None:
+            raise ValueError(f"{name}: needs 'pose' or 'joints3d' (ground truth) for the experiment")
+        motion_subjects[name] = resolved
+    train_poses = [motion_subjects[n].poses for n in train_names]
+    validation_poses = [motion_subjects[n].poses for n in validation_names]
+    donors = [(name, motion_subjects[name], seq.subject) for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]]
     window = shared_window(test, config.frames, config.resolution)
     scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
-                           calibrate=config.calibrate_shape, resolution=config.resolution, pixel_samples=config.pixel_samples)
+                           calibrate=config.calibrate_shape, resolution=config.resolution, pixel_samples=config.pixel_samples,
+                           body=config.body, height=config.height, donors=donors, say=say)
               for seq, name in zip(test, test_names)]
-    train_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(train, train_names)]
-    validation_poses = [sequence_poses(s, n, key=ik_key) for s, n in zip(validation, validation_names)]
 
     results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
-               "residual": {}, "sequences": {},
+               "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {},
                "estimates": {}, "shape_calibration": {}, "ground_prior": {}}
+    for name, resolved in motion_subjects.items():
+        results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
+        _warn_unreachable(resolved, name, results)
+    for scene, name in zip(scenes, test_names):
+        results["bodies"][name] = scene.body_summary()
+        results["ik_residual_mm"][name] = results["bodies"][name].get("ik_residual_mm")
+        _warn_unreachable(scene.subject, name, results)
+        say(f"{name}: body {scene.body_source}{f' ({scene.subject.detail})' if scene.subject.detail else ''}; the start pose is "
+            f"{scene.start_error_mm:.1f} mm from frame 0's ground truth")
     if config.ground_prior:
-        clearance = motion_clearance(validation, validation_poses)
+        clearance = motion_clearance(validation, validation_poses, skeletons=[motion_subjects[n].body.skeleton for n in validation_names])
         scenes = [add_ground_prior(scene, clearance) for scene in scenes]
         for scene, name in zip(scenes, test_names):
             prior = scene.ground_prior
             results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": clearance,
                                              "tolerance_m": float(prior.tolerance), "floor_height_m": float(prior.floor_height)}
+
+    # Every method's preconditions before any fitting: a method that cannot run on these data is
+    # refused alone, and the others run.
+    def refuse(method, why):
+        if method not in results["refused"]:
+            results["refused"][method] = why
+            print(f"warning: {method_label(method)} refused: {why}")
+
+    for method, why in method_problems(config, train_poses, validation_poses).items():
+        refuse(method, why)
     results["manifolds"] = {}
     motions = {None: motion_data(train_poses, validation_poses)}
     for kind, latent_dim in config.manifold_specs:
+        users = [m for m in config.methods if config.manifold_spec_of(m) == (kind, latent_dim) and m not in results["refused"]]
+        if not users:
+            continue
         start = time.perf_counter()
-        model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress,
-                                               optimiser=config.fit_optimiser)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress,
+                                                       optimiser=config.fit_optimiser)
+        except (ValueError, np.linalg.LinAlgError) as err:
+            for method in users:
+                refuse(method, f"its {kind} manifold ({latent_dim}-D) could not be fitted: {err}")
+            continue
+        notes = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+        for note in notes:
+            print(f"warning: {manifold_label(kind, latent_dim)}: {note}")
         fit_s = time.perf_counter() - start
         say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
         results["manifolds"][manifold_label(kind, latent_dim)] = {
             "kind": kind, "class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
-            "objective": fit_info.objective, "steps": fit_info.steps, "fit_s": fit_s}
+            "objective": fit_info.objective, "steps": fit_info.steps, "fit_s": fit_s, "warnings": notes}
         motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
-    if config.manifold_specs:
-        results["manifold"] = results["manifolds"][manifold_label(*config.manifold_specs[0])]
+    if results["manifolds"]:
+        results["manifold"] = next(iter(results["manifolds"].values()))
     fitted, run_roots = {}, {}
     for method in config.methods:
+        if method in results["refused"]:
+            continue
         fit_key, run_roots[method] = tracker_keys(config.seed, tracker_index(method))
-        fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
+        try:
+            fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
+        except (ValueError, np.linalg.LinAlgError) as err:
+            refuse(method, f"its dynamics could not be fitted: {err}")
+            continue
         results["dynamics"][method] = dynamics_parameters(fitted[method])
+    methods = [m for m in config.methods if m in fitted]
 
     budget = config.tracking_budget
     for scene, name in zip(scenes, test_names):
@@ -193,7 +259,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             say(f"{name}: body calibrated on frame 0, silhouette cost {report.cost_before:.3f} -> {report.cost_after:.3f}")
         groups = part_group_indices(scene.body.skeleton)
         per_method = results["sequences"][name] = {}
-        for method in config.methods:
+        for method in methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
                                     residual_from=validation_poses, residual_scale=config.residual_of(method))
@@ -228,13 +294,15 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                 "first_run_s (includes compile)": float(times[0]),
                 # compile time: the first run less a steady one (None with one run, or batched runs)
                 "compile_s": float(times[0] - np.median(steady)) if len(times) > 1 and not config.batch_runs else None,
+                "frame0_error_mm": float(np.mean([c[0] for c in curves])),
+                "start_error_mm": scene.start_error_mm,
                 "mean_ess": float(np.mean(ess)),
                 "degenerate_fraction": float(np.mean(degenerate)),
                 "likelihood_evaluations_per_frame": config.budget,
             }
             results["estimates"].setdefault(name, {})[method] = estimates
             say(f"{name} {method_label(method):>8}: {np.mean(errors):6.1f} ({np.std(errors):4.1f}) mm over {config.runs} runs, "
-                f"{per_method[method]['frames_per_second']:.1f} frames/s")
+                f"frame 0 {per_method[method]['frame0_error_mm']:.1f} mm, {per_method[method]['frames_per_second']:.1f} frames/s")
             if np.mean(degenerate) > 0:  # printed whatever ``progress`` says: these numbers are not to be trusted
                 print(f"warning: {name} {method_label(method)}: on {100 * np.mean(degenerate):.0f} % of the frames every particle's "
                       "likelihood was -inf or NaN (the filter tracked blind on uniform weights)")

@@ -6,6 +6,7 @@ Keys (all optional except ``fps``; ``C`` cameras, ``T`` frames, ``J`` joints, ``
 key               shape, dtype           meaning
 ================  =====================  ===================================================
 fps               (), float              frames per second
+subject           (), str                who is filmed: sequences of one subject share a body
 joint_names       (J,), str              joint names, root first
 parents           (J,), int              parent of each joint, -1 for the root
 joints3d          (T, J, 3), float       joint positions, metres, world frame, Z up
@@ -41,6 +42,7 @@ from ..errors import SequenceFileError
 from ._output import atomic_write, output_file
 
 ARRAY_KEYS = (
+    "subject",
     "joint_names",
     "parents",
     "joints3d",
@@ -77,6 +79,7 @@ class Sequence:
     """
 
     fps: float
+    subject: str | None = None
     joint_names: np.ndarray | None = None
     parents: np.ndarray | None = None
     joints3d: np.ndarray | None = None
@@ -193,7 +196,7 @@ class Sequence:
         for key in ARRAY_KEYS:
             value = getattr(self, key)
             if value is not None:
-                out[key] = value
+                out[key] = np.asarray(value) if key == "subject" else value
         return out
 
 
@@ -304,6 +307,11 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     if fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not (np.isfinite(fps) and fps > 0):
         _fail(source, "fps", f"must be a positive scalar, got {fps!r}")
     out: dict = {"fps": float(fps)}
+    if "subject" in f:
+        subject = np.asarray(f["subject"])
+        if subject.shape != () or subject.dtype.kind != "U" or not str(subject).strip():
+            _fail(source, "subject", f"must be one non-empty string (who is filmed), got {subject!r}")
+        out["subject"] = str(subject).strip()
 
     lengths: dict[str, tuple[int, str]] = {}  # dimension name -> (size, key that set it)
 

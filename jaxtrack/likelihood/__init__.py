@@ -7,6 +7,10 @@ from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
+from ._body_calibration import BodyCalibration as BodyCalibration
+from ._body_calibration import body_of as body_of
+from ._body_calibration import calibrate_body as calibrate_body
+from ._body_calibration import with_body as with_body
 from ._calibration import ShapeCalibration as ShapeCalibration
 from ._calibration import calibrate_shape as calibrate_shape
 from ._coarse import CoarseSilhouetteLikelihood as CoarseSilhouetteLikelihood
@@ -19,6 +23,7 @@ from ._sampled import PixelSample as PixelSample
 from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
 from ._sampled import default_band as default_band
 from ._sampled import default_near as default_near
+from ._sampled import default_pixel_samples as default_pixel_samples
 from ._sampled import pixel_strata as pixel_strata
 from ._sampled import sample_frames as sample_frames
 from ._sampled import sample_pixels as sample_pixels

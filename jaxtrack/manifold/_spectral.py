@@ -14,6 +14,8 @@ GLE-GbPF's graph walk (``jaxtrack.dynamics.GLEGraphWalk``) moves on.
 
 from __future__ import annotations
 
+import warnings
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -171,8 +173,16 @@ def fit_spectral(sequences, graph: str = "gle", *, latent_dim: int = 3, t: int =
         W = temporal_graph(sequence_lengths, t)
     else:
         repetitions = [n for a in arrays for n in _cycles(a, min_period)]
-        neighbours = stylistic_neighbours(Yn, repetitions, t)
-        W = temporal_graph(repetitions, t) + alpha * stylistic_graph(neighbours)
+        if len(repetitions) < 2:
+            # 002's stylistic neighbours align repetitions with each other; with one there is
+            # nothing to align, and the GLE is its temporal graph (the TLE of that one sequence).
+            warnings.warn(f"GLE: the training motion is one repetition ({repetitions[0]} frames, under two gait cycles): no "
+                          "stylistic neighbours to align, so the graph is the temporal one alone", stacklevel=2)
+            neighbours = np.zeros((Y.shape[0], 0), np.int64)
+            W = temporal_graph(repetitions, t)
+        else:
+            neighbours = stylistic_neighbours(Yn, repetitions, t)
+            W = temporal_graph(repetitions, t) + alpha * stylistic_graph(neighbours)
     Z, _ = laplacian_embedding(W, latent_dim)
     Z = Z / Z.std(axis=0)  # unit spread: the networks' and the walk's scales do not depend on M
     # The next temporal neighbour continues across the cycles of one sequence, and stops at its end.

@@ -5,6 +5,7 @@ them and ``register_tracker`` adds your own."""
 
 from ._builtin import BUILTIN_RECIPES as BUILTIN_RECIPES
 from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
+from ._pipeline import CALIBRATION_FRAMES as CALIBRATION_FRAMES
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
 from ._pipeline import TestScene as TestScene
 from ._pipeline import add_ground_prior as add_ground_prior
@@ -16,6 +17,8 @@ from ._pipeline import fit_manifold as fit_manifold
 from ._pipeline import fit_tracker as fit_tracker
 from ._pipeline import fit_velocity as fit_velocity
 from ._pipeline import ground_truth_joints as ground_truth_joints
+from ._pipeline import manifold_problem as manifold_problem
+from ._pipeline import method_problems as method_problems
 from ._pipeline import motion_clearance as motion_clearance
 from ._pipeline import motion_data as motion_data
 from ._pipeline import prepare_test as prepare_test
@@ -38,3 +41,9 @@ from ._registry import get_tracker as get_tracker
 from ._registry import register_tracker as register_tracker
 from ._registry import tracker_index as tracker_index
 from ._registry import unregister_tracker as unregister_tracker
+from ._subject import BODY_CHOICES as BODY_CHOICES
+from ._subject import BODY_SOURCES as BODY_SOURCES
+from ._subject import SubjectBody as SubjectBody
+from ._subject import check_offsets_match_joints as check_offsets_match_joints
+from ._subject import limb_lengths_of as limb_lengths_of
+from ._subject import subject_body as subject_body

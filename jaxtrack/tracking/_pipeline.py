@@ -17,22 +17,37 @@ import numpy as np
 
 from .._custom_types import Array, Key, PRNGKeyArray
 from .._tree import cast_floating
-from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, check_joint_names, forward_kinematics, inverse_kinematics, joint_angles
+from ..body import (
+    GLOBAL_DOFS,
+    HUMANEVA_JOINTS,
+    check_height,
+    forward_kinematics,
+    humaneva_body,
+    inverse_kinematics,
+    joint_angles,
+    limb_lengths_for_height,
+)
 from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import (
+    BodyCalibration,
     SampledSilhouetteLikelihood,
+    body_of,
+    calibrate_body,
     calibrate_shape,
     check_silhouettes,
+    default_pixel_samples,
     ground_clearance,
     make_ground_prior,
     make_silhouette_likelihood,
     sample_frames,
+    with_body,
 )
 from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm
 from ._registry import DEFAULT_LATENT_DIMS, MANIFOLD_KINDS, SPECTRAL_MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
+from ._subject import SubjectBody, limb_lengths_of, subject_body
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
@@ -40,16 +55,13 @@ PIXEL_SAMPLE_TAG = 2**31 - 2  # fold_in tag of a test scene's pixel-sample key
 
 
 def sequence_poses(sequence: Sequence, name: str, *, key: PRNGKeyArray) -> np.ndarray:
-    """The (T, D) pose vectors of a sequence (float64): its ``pose`` key, or inverse kinematics
-    on ``joints3d`` with the sequence's own skeleton when it has none (``key`` seeds the IK's
-    restarts)."""
-    if sequence.joint_names is not None:
-        check_joint_names([str(n) for n in sequence.joint_names], HUMANEVA_JOINTS, f"{name} joint_names")
-    if sequence.pose is not None:
-        return np.asarray(sequence.pose, np.float64)
-    if sequence.joints3d is None:
+    """The (T, D) pose vectors of a sequence (float64) on its own body (``subject_body``): its
+    ``pose`` key with its skeleton, else inverse kinematics on ``joints3d`` (``key`` seeds the IK's
+    restarts), fitting the skeleton when the file has none."""
+    resolved = subject_body(sequence, name, key=key)
+    if resolved.poses is None:
         raise ValueError(f"{name}: needs 'pose' or 'joints3d' (ground truth) for the experiment")
-    return np.asarray(inverse_kinematics(sequence.joints3d, key=key).pose, np.float64)
+    return resolved.poses
 
 
 def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.ndarray:
@@ -190,7 +202,13 @@ def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray] 
 @dataclasses.dataclass(frozen=True)
 class TestScene:
     """A test sequence ready to track: float32 likelihood and observations, the initial pose,
-    and the float64 ground truth."""
+    and the float64 ground truth.
+
+    ``subject`` says where the body came from (``SubjectBody``: file, fitted to joints, training
+    take, default) and ``body_calibration`` what the calibration from the images did (then the
+    body's source is "calibrated"); ``start_error_mm`` is the initial pose's mean joint error
+    against the ground truth of frame 0 (000 eq. 31): a body or start fault shows there before
+    any tracking."""
 
     likelihood: object
     observations: object  # (T, C, H, W) float32 silhouettes, or a PixelSample with a leading T axis
@@ -200,59 +218,198 @@ class TestScene:
     body: object
     shape_calibration: object = None  # a ShapeCalibration when the body was calibrated
     ground_prior: object = None  # the GroundPlanePrior the likelihood includes, if any (``add_ground_prior``)
+    subject: SubjectBody | None = None
+    body_calibration: BodyCalibration | None = None
+    start_error_mm: float = float("nan")
+    pixel_samples: int | None = None
 
     @property
     def num_frames(self) -> int:
         return int(jax.tree.leaves(self.observations)[0].shape[0])
 
+    @property
+    def body_source(self) -> str:
+        """Where the body came from: one of ``BODY_SOURCES``."""
+        if self.body_calibration is not None:
+            return "calibrated"
+        return "default" if self.subject is None else self.subject.source
+
+    def body_summary(self) -> dict:
+        """For results.json: the body's source, limb lengths (mm), radii, IK residual, calibration."""
+        out = {} if self.subject is None else self.subject.summary()
+        out["source"] = self.body_source
+        out["limb_lengths_mm"] = {k: round(1000 * v, 1) for k, v in limb_lengths_of(self.body).items()}
+        out["capsule_radii_mm"] = dict(zip(self.body.capsule_names, np.round(1000 * np.asarray(self.body.radii, np.float64), 1).tolist()))
+        if self.body_calibration is not None:
+            out["calibration"] = self.body_calibration.summary()
+        out["start_error_mm"] = self.start_error_mm
+        return out
+
+
+CALIBRATION_FRAMES = 4  # frames the body calibration fits (the first ones, their poses free)
+# The ankle's clearance above the floor during the calibration when none is measured (metres): an
+# adult's ankle joint stands 6-8 cm above the sole (CMU subject 35's takes: 60-73 mm). Without the
+# floor, foot shadows in noisy 80x60 views stretched the shins by 9-11 cm.
+CALIBRATION_CLEARANCE = 0.06
+
+
+# The person's height in pixels (median over the views, frame 0) under which ``body="auto"`` does
+# not calibrate limb lengths: in the default rig at 80x60 (a person 29 pixels tall) the calibrated
+# start was worse than the default body's (docs/body.md); at 160x120 (55 pixels) it was better on
+# clean views.
+MIN_CALIBRATION_PIXELS = 45
+
+
+def person_height_pixels(masks) -> float:
+    """The median over views of the silhouettes' bounding-box height in pixels, masks (C, H, W)."""
+    rows = np.any(np.asarray(masks) > 0, axis=-1)  # (C, H)
+    heights = [np.ptp(np.flatnonzero(r)) + 1 if r.any() else 0 for r in rows]
+    return float(np.median(heights))
+
+
+def _start_pose(sequence: Sequence, body_model, pose, key) -> np.ndarray:
+    """The start pose on a new body: frame 0's joints solved on its skeleton when the file has
+    them (the given start is joint positions), else ``pose``."""
+    if sequence.joints3d is None:
+        return np.asarray(pose, np.float64)
+    return np.asarray(inverse_kinematics(sequence.joints3d[:1], skeleton=body_model.skeleton, key=key, dtype=jnp.float64).pose[0])
+
 
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
                  window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None,
-                 pixel_samples: int | None = None) -> TestScene:
+                 pixel_samples: int | str | None = None, body: str = "auto", height: float | None = None, donors=(),
+                 calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
-    ``frames`` frames, all when None). With ``calibrate``, the body's capsule radii are fitted
-    to the first frame's silhouettes at the initial pose (``likelihood.calibrate_shape``)
-    before tracking; the sequence's own ``capsule_radii`` (or the defaults) are the start. With
-    ``resolution`` = (width, height), the silhouettes are block-averaged down to it and the
-    cameras rescaled (``Sequence.resized``); it must divide the recorded size. With
+    ``frames`` frames, all when None).
+
+    The body (``subject_body``): ``body="auto"`` takes the file's skeleton, else the one fitted
+    to its ``joints3d``, else that of a ``donors`` take of the same ``subject``, else calibrates
+    the default (or ``height``'s proportions) from the first ``calibration_frames`` frames'
+    silhouettes (``likelihood.calibrate_body``: limb lengths, radii and those frames' poses,
+    from the given start pose, the feet kept out of the floor by the ground plane's prior at
+    ``ground_clearance``, default ``CALIBRATION_CLEARANCE``); ``"calibrate"`` always calibrates, ``"default"`` never (the
+    default body, poses solved on it), ``"joints"`` fits to the joints even over a file's
+    skeleton. With ``calibrate``, the capsule radii alone are fitted to the first frame at the
+    initial pose (``likelihood.calibrate_shape``). With ``resolution`` = (width, height), the
+    silhouettes are block-averaged down to it and the cameras rescaled (``Sequence.resized``). With
     ``pixel_samples`` = n, the likelihood is the ``SampledSilhouetteLikelihood`` on n stratified
     pixels per view and frame (``sample_frames`` with ``fold_in(key, PIXEL_SAMPLE_TAG)``, drawn
-    once for the scene, after any calibration) and the observations are the ``PixelSample``."""
+    once for the scene, after any calibration) and the observations are the ``PixelSample``;
+    ``"auto"``: by the image size (``likelihood.default_pixel_samples``); None or 0: every pixel.
+    ``say`` (e.g. ``print``) is told what was chosen."""
+    say = say or (lambda *a, **k: None)
     check_test_sequence(sequence, name)
+    if height is not None:
+        check_height(height)
     total = sequence.silhouettes.shape[1]
     frames = total if frames is None else min(frames, total)
     if resolution is not None:
         sequence = sequence.resized(*resolution)
     rig = sequence.rig(dtype=TRACKING_DTYPE)
-    body = sequence.body(dtype=TRACKING_DTYPE)
+    width, image_height = (int(v) for v in sequence.image_size[0])
+    if isinstance(pixel_samples, str):
+        if pixel_samples != "auto":
+            raise ValueError(f"pixel_samples must be a whole number, 'auto' or None, got {pixel_samples!r}")
+        pixel_samples = default_pixel_samples(width, image_height)
+        say(f"{name}: {width}x{image_height} images: the likelihood scores "
+            + ("every pixel of its window" if pixel_samples is None else f"{pixel_samples} sampled pixels per view and frame")
+            + " (--pixel-samples to choose)")
+    pixel_samples = pixel_samples or None
+    resolved = subject_body(sequence, name, key=key, choice=body, donors=donors, dtype=TRACKING_DTYPE)
+    if resolved.poses is None:
+        raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
+    body_model = resolved.body
     observed = check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames]
-    truth_poses = sequence_poses(sequence, name, key=key)[:frames]
-    truth = ground_truth_joints(sequence, truth_poses, body.skeleton)[:frames]
-    check_in_view(rig, forward_kinematics(body.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
+    truth_poses = resolved.poses[:frames]
+    truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
+    check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
                   f"{name}'s initial pose (frame 0)")
-    likelihood = make_silhouette_likelihood(body, rig, scale=likelihood_scale, window=window, silhouettes=observed)
+    likelihood = make_silhouette_likelihood(body_model, rig, scale=likelihood_scale, window=window, silhouettes=observed)
     observations = np.moveaxis(observed, 1, 0)
+    initial_pose = truth_poses[0]
+    calibration = None
+    tall = person_height_pixels(observed[:, 0])
+    wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
+    if wanted and body == "auto" and tall < MIN_CALIBRATION_PIXELS:
+        say(f"warning: {name}: the file has no skeleton, and the person is {tall:.0f} pixels tall: too small to calibrate limb "
+            f"lengths from (under {MIN_CALIBRATION_PIXELS}: docs/body.md); tracking with the default proportions"
+            + ("" if height is None else f" scaled to {height:g} m") + " (--calibrate-body to calibrate all the same)")
+        wanted = False
+        if height is not None:
+            body_model = eqx.tree_at(lambda b: b.skeleton, body_model,
+                                     humaneva_body(limb_lengths_for_height(height), dtype=TRACKING_DTYPE).skeleton)
+            likelihood = with_body(likelihood, body_model)
+            initial_pose = _start_pose(sequence, body_model, truth_poses[0], key)
+    if wanted:
+        count = max(1, min(calibration_frames, frames))
+        say(f"{name}: calibrating the body's limb lengths and radii from the first {count} frames' silhouettes"
+            f"{'' if height is None else f' (height {height:g} m)'}")
+        floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
+        calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(truth_poses[:1], count, axis=0),
+                                                               jnp.asarray(observations[:count]), height=height)
+        body_model = body_of(calibrated)
+        likelihood = with_body(likelihood, body_model)
+        initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key)
+        say(f"{name}: calibrated limb lengths (mm): "
+            + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
+            + f"; silhouette cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
     report = None
     if calibrate:
-        likelihood, report = calibrate_shape(likelihood, truth_poses[:1], observations[:1])
-        body = likelihood.body
+        likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])
+        body_model = likelihood.body
+    start_error = float(np.mean(np.linalg.norm(
+        np.asarray(forward_kinematics(body_model.skeleton, jnp.asarray(initial_pose, TRACKING_DTYPE)), np.float64) - truth[0], axis=-1)))
     observations = jnp.asarray(observations)
     if pixel_samples is not None:
         likelihood = SampledSilhouetteLikelihood.from_dense(likelihood)
         observations = sample_frames(jax.random.fold_in(key, PIXEL_SAMPLE_TAG), observations, samples=pixel_samples)
     return TestScene(
-        likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(truth_poses[0], TRACKING_DTYPE),
-        truth_poses=truth_poses, truth_joints=truth, body=body, shape_calibration=report,
+        likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(initial_pose, TRACKING_DTYPE),
+        truth_poses=truth_poses, truth_joints=truth, body=body_model, shape_calibration=report, subject=resolved,
+        body_calibration=calibration, start_error_mm=1000.0 * start_error, pixel_samples=pixel_samples,
     )
 
 
-def motion_clearance(sequences, poses, *, floor_height: float = 0.0) -> float:
+def motion_clearance(sequences, poses, *, floor_height: float = 0.0, skeletons=None) -> float:
     """The ankle's clearance above the floor (``likelihood.ground_clearance``, metres) in
     motion sequences with their (T, D) ``poses`` (from ``sequence_poses``): the files' ``joints3d``,
-    else forward kinematics with each sequence's own skeleton."""
-    joints = [ground_truth_joints(s, p, s.body(dtype=TRACKING_DTYPE).skeleton)
-              for s, p in zip(sequences, poses)]
+    else forward kinematics with each sequence's own skeleton (``skeletons``, e.g. from
+    ``subject_body``; default: the file's or the default one)."""
+    skeletons = skeletons or [s.body(dtype=TRACKING_DTYPE).skeleton for s in sequences]
+    joints = [ground_truth_joints(s, p, k) for s, p, k in zip(sequences, poses, skeletons)]
     return ground_clearance(joints, HUMANEVA_JOINTS, floor_height=floor_height)
+
+
+def manifold_problem(kind: str, latent_dim: int, train_poses) -> str | None:
+    """Why a ``kind`` manifold of ``latent_dim`` dimensions cannot be fitted on these training
+    pose sequences, or None: the fits' own preconditions, checked before any fitting."""
+    lengths = [len(p) for p in train_poses]
+    total = sum(lengths)
+    if total <= latent_dim + 1:
+        return f"{total} training frames are too few for a {latent_dim}-D latent space (need more than {latent_dim + 1})"
+    if kind in ("gpdm", "bc-gpdm") and min(lengths) < 2:
+        return f"a GPDM's dynamics need two or more frames in every training sequence (one has {min(lengths)})"
+    if kind == "le" and total < 11:
+        return f"the nearest-neighbour graph needs at least 11 training frames, got {total}"
+    if kind in ("tle", "gle") and min(lengths) < 5:
+        return f"the temporal graph needs at least 5 frames in every training sequence (one has {min(lengths)})"
+    return None
+
+
+def method_problems(config, train_poses, validation_poses) -> dict[str, str]:
+    """Each requested method that cannot run on these motion data, with the reason (its
+    manifold's preconditions, ``manifold_problem``; a velocity fitted on validation sequences
+    of fewer than three frames). ``config`` is an ``ExperimentConfig``."""
+    problems = {}
+    short = min(len(p) for p in validation_poses)
+    for method in config.methods:
+        spec = config.manifold_spec_of(method)
+        why = None if spec is None else manifold_problem(*spec, train_poses)
+        if why is None and config.velocity_of(method) and short < 3:
+            why = f"its Kalman-tracked velocity needs validation sequences of three or more frames (one has {short})"
+        if why is not None:
+            problems[method] = why
+    return problems
 
 
 def add_ground_prior(scene: TestScene, clearance: float, *, floor_height: float = 0.0, tolerance: float | None = None) -> TestScene:
@@ -357,13 +514,16 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
                    calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
-                   on_chunk=None, pixel_samples: int | None = None, residual: float | None = None, ground_prior: bool = True):
+                   on_chunk=None, pixel_samples: int | str | None = None, residual: float | None = None, ground_prior: bool = True,
+                   body: str = "auto", height: float | None = None, say=print):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
     (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``; ``residual`` None:
     its own pose residual, ``TrackerRecipe.residual``); ``chunk_frames``
     and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``pixel_samples``
     as for ``prepare_test``; ``ground_prior``: the likelihood times the ground plane's prior
-    (``add_ground_prior``), its clearance that of the validation motion.
+    (``add_ground_prior``), its clearance that of the validation motion; ``body`` and ``height``
+    as for ``prepare_test`` (the validation file lends its body to a test file of the same
+    ``subject`` that has neither skeleton nor joints); ``say`` is told what was chosen.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
@@ -382,11 +542,16 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     check_model_layout(model, header, sequence, name)
     check_frame_rates([sequence, validation], [name, "the validation sequence"])
     key = jax.random.key(seed)
-    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples)
+    validation_subject = subject_body(validation, "the validation sequence", key=key)
+    if validation_subject.poses is None:
+        raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
+    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples,
+                         body=body, height=height, donors=[("the validation sequence", validation_subject, validation.subject)], say=say)
+    say(f"{name}: body {scene.body_source}; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth")
     starts = header.get("sequence_starts")
-    validation_poses = sequence_poses(validation, "validation", key=key)
+    validation_poses = validation_subject.poses
     if ground_prior:
-        scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses]))
+        scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton]))
     motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, tracker_index(method))
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,

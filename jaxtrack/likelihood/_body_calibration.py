@@ -1,0 +1,279 @@
+"""Body calibration from the images: a subject's limb lengths and capsule radii fitted jointly
+with the poses of the first few frames, by gradient through the likelihood (the soft
+rasteriser for silhouettes), for a user who has no motion capture of the person.
+
+The maximum a posteriori estimate of
+
+    theta = (log scale, log limb proportions (8, left and right tied), log radii (left and
+             right tied), poses of F frames)
+
+under ``data_weight * sum_f ln p(I_f | x_f, body(theta))`` (000 eq. 12 at the likelihood's
+temperature, or any likelihood of the library whose pytree holds the ``BodyModel`` it renders),
+with Gaussian priors on
+
+- the common log scale of every limb around a reference: a stated height's (the default
+  proportions scaled to it, ``body.limb_lengths_for_height``; sd ``scale_sd_height`` 0.02), or
+  the starting body's (sd ``scale_sd`` 0.1: adults' statures spread by about 7 %);
+- each limb's own log length around the scaled reference (sd ``proportion_sd`` 0.06: segment
+  lengths as fractions of stature vary by 4-6 % between adults);
+- each log radius around its start (sd ``radius_sd`` 0.15, as ``calibrate_shape``);
+- each pose around its start (``pose_sd_m`` on the root, ``pose_sd_rad`` on the angles): weak,
+  so the poses move where the body's new proportions need them.
+
+``data_weight`` (30) undoes the tracker's tempering for this one MAP problem: at the tracking
+temperature (000 eq. 12 times 100) a 4-frame clean 160x120 scene holds about one nat for a limb
+5 cm off, less than the proportions' prior, and the lengths stayed where they started; at 30 the
+arms and legs came within 1-2 cm (the notes in ``docs/body.md``).
+
+Adam on the whitened parameters (each divided by its prior's sd), from the prior's centre. (A
+coarse-to-fine schedule, the soft edges 4, 2 and then 1 times the likelihood's width, changed
+nothing at 160x120 and made 80x60 worse: its blurred first stage moved the legs away.) Bone lengths and poses
+trade against each other in one view; in several calibrated views the scale is fixed by the
+cameras. What the silhouettes barely separate is where the thorax sits between the pelvis and
+the head (the spine against the neck): that split is left mostly to the prior.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_lengths_for_height
+from ..errors import ConfigurationError
+from ._base import AbstractLikelihood
+from ._calibration import symmetric_groups
+
+PLAUSIBLE_FACTOR = (0.75, 1.33)  # a fitted limb length outside this range of its reference: not converged
+MAX_COST = 0.5  # 000 eq. 12's cost (mean over frames) a converged calibration ends below: clean 0.1, noisy 80x60 0.2-0.3
+
+
+class BodyCalibration(NamedTuple):
+    """What ``calibrate_body`` did.
+
+    Attributes:
+        limb_names: the 8 limbs (keys of ``body.DEFAULT_LIMB_LENGTHS``).
+        lengths_before, lengths_after: (8,) limb lengths, metres.
+        reference_lengths: (8,) the prior's centre, metres.
+        capsule_names: the capsules.
+        radii_before, radii_after: (K,) radii, metres.
+        poses_before, poses_after: (F, D) the frames' poses.
+        cost_before, cost_after: ``-mean_f ln p(I_f | x_f) / scale`` at the start and the end.
+        trace: (steps,) the MAP objective per step.
+        height: the stated height (metres), or None.
+    """
+
+    limb_names: tuple[str, ...]
+    lengths_before: np.ndarray
+    lengths_after: np.ndarray
+    reference_lengths: np.ndarray
+    capsule_names: tuple[str, ...]
+    radii_before: np.ndarray
+    radii_after: np.ndarray
+    poses_before: np.ndarray
+    poses_after: np.ndarray
+    cost_before: float
+    cost_after: float
+    trace: np.ndarray
+    height: float | None
+
+    def summary(self) -> dict:
+        """For results.json: lengths and radii (mm) before and after, costs, height."""
+        return {"limb_lengths_before_mm": dict(zip(self.limb_names, np.round(1000 * self.lengths_before, 1).tolist())),
+                "limb_lengths_after_mm": dict(zip(self.limb_names, np.round(1000 * self.lengths_after, 1).tolist())),
+                "radii_before_mm": dict(zip(self.capsule_names, np.round(1000 * self.radii_before, 1).tolist())),
+                "radii_after_mm": dict(zip(self.capsule_names, np.round(1000 * self.radii_after, 1).tolist())),
+                "cost_before": self.cost_before, "cost_after": self.cost_after, "frames": int(self.poses_after.shape[0]),
+                "height_m": self.height}
+
+
+def body_of(likelihood) -> BodyModel:
+    """The ``BodyModel`` a likelihood renders (the first one in its pytree)."""
+    found = [leaf for leaf in jax.tree.leaves(likelihood, is_leaf=lambda x: isinstance(x, BodyModel)) if isinstance(leaf, BodyModel)]
+    if not found:
+        raise ConfigurationError(f"{type(likelihood).__name__} holds no BodyModel: there is no body to calibrate")
+    return found[0]
+
+
+def with_body(likelihood, body: BodyModel):
+    """The likelihood with every ``BodyModel`` in its pytree replaced by ``body``, and every
+    skeleton outside one (a ``GroundPlanePrior``'s) by ``body.skeleton``."""
+    def swap(leaf):
+        if isinstance(leaf, BodyModel):
+            return body
+        return body.skeleton if isinstance(leaf, Skeleton) else leaf
+
+    return jax.tree.map(swap, likelihood, is_leaf=lambda x: isinstance(x, (BodyModel, Skeleton)))
+
+
+def _limb_structure(body: BodyModel):
+    """Per joint: its limb's index (-1 for the root) and the unit direction of its rest offset."""
+    names = tuple(LIMB_SEGMENTS)
+    limb_of = np.full(body.skeleton.num_joints, -1)
+    for i, limb in enumerate(names):
+        for _, joint in LIMB_SEGMENTS[limb]:
+            limb_of[body.skeleton.joint_index(joint)] = i
+    offsets = np.asarray(body.skeleton.offsets, np.float64)
+    norms = np.linalg.norm(offsets, axis=1)
+    directions = np.where(norms[:, None] > 0, offsets / np.maximum(norms, 1e-12)[:, None], 0.0)
+    lengths = np.array([np.mean([norms[body.skeleton.joint_index(j)] for _, j in LIMB_SEGMENTS[limb]]) for limb in names])
+    return names, limb_of, directions, lengths
+
+
+def calibrate_body(
+    likelihood: AbstractLikelihood,
+    poses,
+    observations,
+    *,
+    height: float | None = None,
+    steps: int = 300,
+    learning_rate: float = 0.05,
+    scale_sd: float = 0.1,
+    scale_sd_height: float = 0.02,
+    proportion_sd: float = 0.06,
+    radius_sd: float = 0.15,
+    pose_sd_m: float = 0.1,
+    pose_sd_rad: float = 0.3,
+    data_weight: float = 30.0,
+):
+    """Fit the body's limb lengths and radii, and the frames' poses, to the first frames' images.
+
+    Args:
+        likelihood: any likelihood whose pytree holds the ``BodyModel`` it renders (e.g.
+            ``SilhouetteLikelihood``); its body is the start.
+        poses: (F, D) starting poses of the F frames (e.g. the given start pose repeated, or
+            inverse kinematics on the default skeleton).
+        observations: the F frames' observations, a leading F axis on every leaf (e.g. (F, C,
+            H, W) silhouettes, or a ``PixelSample``).
+        height: the subject's standing height in metres: the limb lengths' prior is then the
+            default proportions at that height (tighter); None: the starting body's lengths.
+        steps, learning_rate: Adam on the whitened parameters.
+        scale_sd, scale_sd_height: prior sd of the common log scale of every limb, without and
+            with a stated height.
+        proportion_sd: prior sd of each limb's own log length around the scaled reference.
+        radius_sd: prior sd of each log radius around its start.
+        pose_sd_m, pose_sd_rad: prior sds of the poses around their start.
+        data_weight: the log-likelihood's weight against the priors (module docstring).
+
+    Returns:
+        ``(likelihood with the fitted body, fitted poses (F, D), BodyCalibration)``.
+
+    Raises:
+        ValueError: bad shapes, non-finite poses, a height that is not a person's, or non-positive
+            settings.
+        ConfigurationError: a calibration that does not converge (a non-finite objective, a cost
+            that rose or stayed above 0.5, or a limb length outside 0.75-1.33 times its
+            reference, named).
+    """
+    body = body_of(likelihood)
+    poses = np.asarray(poses, np.float64)
+    D = body.skeleton.num_dofs
+    if poses.ndim != 2 or poses.shape[1] != D or poses.shape[0] < 1:
+        raise ValueError(f"poses must be (frames >= 1, {D}), got {poses.shape}")
+    if not np.all(np.isfinite(poses)):
+        raise ValueError("poses contain NaN or infinite values")
+    frames = poses.shape[0]
+    leaves = jax.tree.leaves(observations)
+    if not leaves or any(np.shape(leaf)[:1] != (frames,) for leaf in leaves):
+        raise ValueError(f"observations must have a leading axis of {frames} frames (one per pose)")
+    if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, proportion_sd, radius_sd, pose_sd_m, pose_sd_rad) <= 0:
+        raise ValueError("steps, learning_rate and every prior sd must be positive")
+    names, limb_of, directions, start_lengths = _limb_structure(body)
+    if height is not None:
+        height = check_height(height)
+        reference = np.array([limb_lengths_for_height(height)[n] for n in names])
+        sd_scale = scale_sd_height
+    else:
+        reference, sd_scale = start_lengths, scale_sd
+    groups = symmetric_groups(body.capsule_names)
+    log_radii = np.log(np.asarray(body.radii, np.float64))
+    radius0 = np.array([log_radii[groups == g].mean() for g in range(groups.max() + 1)])
+    pose_sd = np.full(D, pose_sd_rad)
+    pose_sd[:3] = pose_sd_m
+    dtype = body.radii.dtype
+    cast = lambda a: jnp.asarray(a, dtype)  # noqa: E731
+    # Prior centres (the start too) and sds of the whitened parameters.
+    prior = {"scale": cast(np.zeros(1)), "proportion": cast(np.zeros(len(names))), "radius": cast(radius0), "pose": cast(poses)}
+    sds = {"scale": cast(np.full(1, sd_scale)), "proportion": cast(np.full(len(names), proportion_sd)),
+           "radius": cast(np.full(len(radius0), radius_sd)), "pose": cast(pose_sd)}
+    structure = (cast(directions), jnp.asarray(limb_of), jnp.asarray(groups), cast(np.log(reference)))
+    u0 = jax.tree.map(jnp.zeros_like, prior)
+    u, trace, costs = _fit(likelihood, body, structure, observations, prior, sds, jnp.asarray(data_weight, dtype), u0, steps,
+                           learning_rate)
+    fitted = _unwhiten(body, prior, sds, u)
+    trace = np.asarray(trace)
+    before, after = float(costs[0]), float(costs[-1])
+    log_lengths = np.log(reference) + np.asarray(fitted["scale"], np.float64) + np.asarray(fitted["proportion"], np.float64)
+    lengths_after = np.exp(log_lengths)
+    if not (np.all(np.isfinite(trace)) and np.isfinite(after)):
+        raise ConfigurationError("the body calibration did not converge: its objective became non-finite (are the first frames' "
+                                 "silhouettes empty, or the start pose far from the person?)")
+    ratio = lengths_after / reference
+    bad = [f"{n} {1000 * v:.0f} mm ({r:.2f} x the reference)" for n, v, r in zip(names, lengths_after, ratio)
+           if not PLAUSIBLE_FACTOR[0] <= r <= PLAUSIBLE_FACTOR[1]]
+    if bad or after > before or after > MAX_COST:
+        why = (f"limb lengths {', '.join(bad)}" if bad else f"its cost rose from {before:.3f} to {after:.3f}" if after > before
+               else f"its cost ended at {after:.3f}: the body explains too little of the images (a fit reaches 0.1-0.3)")
+        raise ConfigurationError(f"the body calibration did not converge ({why}): check the start pose, the cameras and the "
+                                 "silhouettes of the first frames, or state the subject's height (--height)")
+    new_body = _body(body, structure, fitted)
+    report = BodyCalibration(
+        limb_names=names, lengths_before=start_lengths, lengths_after=lengths_after, reference_lengths=reference,
+        capsule_names=body.capsule_names, radii_before=np.exp(log_radii), radii_after=np.asarray(new_body.radii, np.float64),
+        poses_before=poses, poses_after=np.asarray(fitted["pose"], np.float64), cost_before=float(before), cost_after=float(after),
+        trace=np.asarray(trace), height=height,
+    )
+    return with_body(likelihood, new_body), np.asarray(fitted["pose"], np.float64), report
+
+
+def _body(body: BodyModel, structure, params) -> BodyModel:
+    directions, limb_of, groups, log_reference = structure
+    log_lengths = log_reference + params["scale"] + params["proportion"]
+    lengths = jnp.where(limb_of >= 0, jnp.exp(log_lengths)[jnp.maximum(limb_of, 0)], 0.0)
+    offsets = directions * lengths[:, None]
+    body = eqx.tree_at(lambda b: b.skeleton.offsets, body, offsets.astype(body.radii.dtype))
+    return eqx.tree_at(lambda b: b.radii, body, jnp.exp(params["radius"])[groups].astype(body.radii.dtype))
+
+
+def _scale(likelihood):
+    """The temperature of the likelihood's first term that has one (1 for none)."""
+    for term in jax.tree.leaves(likelihood, is_leaf=lambda x: isinstance(x, AbstractLikelihood) and hasattr(x, "scale")):
+        if isinstance(term, AbstractLikelihood) and hasattr(term, "scale"):
+            return term.scale
+    return 1.0
+
+
+def _unwhiten(body, prior, sds, u):
+    params = jax.tree.map(lambda c, s, v: c + s * v, prior, sds, u)
+    return {**params, "pose": body.skeleton.clip_to_limits(params["pose"])}
+
+
+def _loss(u, likelihood, body, structure, observations, prior, sds, data_weight):
+    """The MAP objective at whitened parameters ``u``, and the cost ``-mean_f ln p / scale``."""
+    params = _unwhiten(body, prior, sds, u)
+    model = with_body(likelihood, _body(body, structure, params))
+    per_frame = jax.vmap(lambda pose, obs: model.log_likelihood(pose[None], obs)[0])(params["pose"], observations)
+    penalty = 0.5 * sum(jnp.sum(v ** 2) for v in jax.tree.leaves(u))
+    return -data_weight * jnp.sum(per_frame) + penalty, -jnp.mean(per_frame) / _scale(likelihood)
+
+
+@eqx.filter_jit
+def _fit(likelihood, body, structure, observations, prior, sds, data_weight, u0, steps, learning_rate):
+    """``steps`` Adam steps on the whitened parameters from ``u0``; returns the last ``u``, the
+    MAP objective per step and the cost per step."""
+    optimiser = optax.adam(learning_rate)
+
+    def step(carry, _):
+        u, state = carry
+        (value, cost), grad = jax.value_and_grad(_loss, has_aux=True)(u, likelihood, body, structure, observations, prior, sds,
+                                                                 data_weight)
+        grad = jax.tree.map(lambda g: jnp.where(jnp.isfinite(g), g, 0.0), grad)
+        updates, state = optimiser.update(grad, state)
+        return (optax.apply_updates(u, updates), state), (value, cost)
+
+    (u, _), (trace, costs) = jax.lax.scan(step, (u0, optimiser.init(u0)), None, length=steps)
+    return u, trace, costs

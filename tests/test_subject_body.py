@@ -1,0 +1,217 @@
+"""The subject's own body: the skeleton a file's joints imply, a body from a training take of
+the same subject, the body calibrated from the images, frame 0 in the report, a method that
+cannot run refused alone, and the image-size rule for sampled pixels."""
+
+import dataclasses
+import json
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.body import humaneva_body, inverse_kinematics
+from jaxtrack.camera import default_rig
+from jaxtrack.data import NO_NOISE, SolidBody, SubjectStyle, build_scene, generate_motion, render_solid_silhouettes
+from jaxtrack.errors import ConfigurationError, SequenceFileError
+from jaxtrack.experiment import ExperimentConfig, run_experiment
+from jaxtrack.io import Sequence, load_sequence, save_sequence
+from jaxtrack.likelihood import calibrate_body, check_silhouettes, default_pixel_samples, make_silhouette_likelihood
+from jaxtrack.manifold import fit_spectral
+from jaxtrack.tracking import limb_lengths_of, method_problems, prepare_test, subject_body
+
+from helpers import small_experiment_sequences
+
+LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm", 0.87), ("forearm", 1.13), ("hip", 0.88),
+                ("thigh", 1.12), ("shin", 0.86))
+JOINT_KEYS = ("pose", "pose_layout", "skeleton_offsets", "capsule_radii")
+
+
+@pytest.fixture(scope="module")
+def other_subject_scene():
+    """A walk of a subject whose limbs are 10-14 % off the default, radii 20 % thicker, in 4
+    clean 40x30 views, as a file with joints, silhouettes and cameras only."""
+    subject = SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=1.2)
+    motion = generate_motion("walk", subject, num_frames=6, fps=30.0, key=jax.random.key(3))
+    scene = build_scene(jax.random.key(4), motion, default_rig(40, 30), NO_NOISE)
+    return motion, scene, scene.replace(**dict.fromkeys(JOINT_KEYS))
+
+
+def test_joints_only_file_gets_the_skeleton_inverse_kinematics_fits(other_subject_scene):
+    _motion, full, joints_only = other_subject_scene
+    resolved = subject_body(joints_only, "x.npz", key=jax.random.key(0))
+    assert resolved.source == "fitted to joints"
+    ik = inverse_kinematics(joints_only.joints3d, key=jax.random.key(0))
+    np.testing.assert_allclose(np.asarray(resolved.body.skeleton.offsets), np.asarray(ik.skeleton.offsets), atol=1e-6)
+    true = dict(LIMB_FACTORS)
+    lengths = limb_lengths_of(resolved.body)
+    default = limb_lengths_of(humaneva_body())
+    for limb, factor in true.items():  # the subject's own limbs, not the default ones
+        assert lengths[limb] == pytest.approx(factor * default[limb], abs=2e-3), limb
+    np.testing.assert_allclose(resolved.poses, np.asarray(ik.pose), atol=1e-6)
+    assert resolved.residual_mm.shape == (6, 15) and resolved.residual_mm.mean() < 1.0  # the joints are the skeleton's
+    summary = resolved.summary()
+    assert summary["source"] == "fitted to joints" and set(summary["ik_residual_mm"]["per_joint"]) >= {"head", "lwrist"}
+    # The scene built on it: the start pose's error at frame 0 is the IK residual of frame 0.
+    scene = prepare_test(joints_only, "x.npz", key=jax.random.key(0))
+    assert scene.body_source == "fitted to joints"
+    assert scene.start_error_mm == pytest.approx(resolved.residual_mm[0].mean(), abs=0.1)
+    # The default body (what jaxtrack did before): the same start is centimetres away.
+    default_scene = prepare_test(joints_only, "x.npz", key=jax.random.key(0), body="default")
+    assert default_scene.body_source == "default" and default_scene.start_error_mm > 15.0
+    # A file that carries its skeleton keeps it.
+    assert subject_body(full, "full.npz", key=jax.random.key(0)).source == "file"
+
+
+def test_a_skeleton_that_contradicts_its_joints_is_refused(other_subject_scene):
+    _motion, full, _joints_only = other_subject_scene
+    offsets = np.asarray(full.skeleton_offsets).copy()
+    offsets[9] *= 1.3  # the left thigh (hip -> knee) 30 % too long
+    bad = full.replace(skeleton_offsets=offsets)
+    with pytest.raises(SequenceFileError, match=r"bad.npz: key 'skeleton_offsets' contradicts 'joints3d': the bone lhip -> lknee"):
+        subject_body(bad, "bad.npz", key=jax.random.key(0))
+    assert subject_body(bad, "bad.npz", key=jax.random.key(0), choice="joints").source == "fitted to joints"
+
+
+def test_a_file_without_joints_borrows_its_subjects_body(other_subject_scene):
+    _motion, full, joints_only = other_subject_scene
+    donor = subject_body(joints_only, "train.npz", key=jax.random.key(0))
+    video_only = full.replace(subject="X", joints3d=None, skeleton_offsets=None, capsule_radii=None)
+    lent = subject_body(video_only, "test.npz", key=jax.random.key(0), donors=[("train.npz", donor, "X")])
+    assert (lent.source, lent.detail) == ("training take", "train.npz")
+    np.testing.assert_allclose(np.asarray(lent.body.skeleton.offsets), np.asarray(donor.body.skeleton.offsets))
+    stranger = subject_body(video_only, "test.npz", key=jax.random.key(0), donors=[("train.npz", donor, "Y")])
+    assert stranger.source == "default"
+
+
+def test_the_subject_key_round_trips_and_is_checked(tmp_path, other_subject_scene):
+    _, full, _ = other_subject_scene
+    path = save_sequence(tmp_path / "s.npz", full.replace(subject="S2"))
+    assert load_sequence(path).subject == "S2"
+    with pytest.raises(SequenceFileError, match="key 'subject': must be one non-empty string"):
+        Sequence.create(fps=30.0, subject=np.array(["a", "b"]))
+
+
+def test_unreachable_joints_are_flagged(other_subject_scene):
+    _, _, joints_only = other_subject_scene
+    joints = np.asarray(joints_only.joints3d).copy()
+    joints[:, 14] = joints[:, 1] - [0.0, 0.0, 0.2]  # the head 20 cm below the thorax: no skeleton reaches it
+    resolved = subject_body(joints_only.replace(joints3d=joints), "bad.npz", key=jax.random.key(0))
+    assert any(entry.startswith("head") for entry in resolved.unreachable())
+    assert resolved.summary()["unreachable_joints"]
+
+
+def test_solid_body_is_another_renderer():
+    motion = generate_motion("walk", "S1", num_frames=2, fps=30.0, key=jax.random.key(0))
+    rig = default_rig(64, 48)
+    solid = render_solid_silhouettes(SolidBody(motion.body.skeleton), rig, motion.pose)
+    capsules = build_scene(jax.random.key(1), motion, rig, NO_NOISE).silhouettes.transpose(1, 0, 2, 3) > 0
+    assert solid.shape == capsules.shape and solid.any(axis=(2, 3)).all()
+    overlap = (solid & capsules).sum() / (solid | capsules).sum()
+    assert 0.6 < overlap < 0.95  # the same person, not the same shape
+    with pytest.raises(ValueError, match="without lens distortion"):
+        render_solid_silhouettes(SolidBody(motion.body.skeleton), dataclasses.replace(rig, dist=rig.dist + 0.1), motion.pose[:1])
+
+
+def test_image_size_rule_for_sampled_pixels():
+    assert default_pixel_samples(80, 60) is None and default_pixel_samples(160, 120) is None
+    assert default_pixel_samples(320, 240) == 2048 and default_pixel_samples(640, 480) == 4096
+    assert ExperimentConfig().pixel_samples == "auto"
+    with pytest.raises(ValueError, match="pixel_samples must be"):
+        ExperimentConfig(pixel_samples="some")
+    with pytest.raises(ValueError, match="looks like millimetres"):
+        ExperimentConfig(height=1750.0)
+    with pytest.raises(ValueError, match="is not a person's height"):
+        ExperimentConfig(height=4.0)
+    with pytest.raises(ValueError, match="body must be one of"):
+        ExperimentConfig(body="mine")
+
+
+def test_prepare_test_says_what_it_chose(other_subject_scene, capsys):
+    _, full, _ = other_subject_scene
+    scene = prepare_test(full, "x.npz", key=jax.random.key(0), pixel_samples="auto", say=print)
+    assert scene.pixel_samples is None and "40x30 images: the likelihood scores every pixel" in capsys.readouterr().out
+
+
+def test_gle_with_one_repetition_falls_back_to_its_temporal_graph():
+    motion = generate_motion("jog", "S1", num_frames=20, fps=60.0, key=jax.random.key(0))  # under two strides
+    angles = np.asarray(motion.pose)[:, 6:]
+    with pytest.warns(UserWarning, match="one repetition .* the graph is the temporal one alone"):
+        model = fit_spectral([angles], "gle")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        temporal = fit_spectral([angles], "tle")
+    np.testing.assert_allclose(np.abs(np.asarray(model.latent)), np.abs(np.asarray(temporal.latent)), atol=1e-6)
+
+
+def test_an_impossible_method_is_refused_alone(tmp_path):
+    train, validation, test = small_experiment_sequences()
+    one_frame = [s.cropped(1) for s in train]  # a GPDM needs two frames per sequence; SIR needs no manifold
+    config = ExperimentConfig(methods=("sir", "gpapf"), budget=40, layers=2, runs=1, frames=3, fit_steps=2)
+    assert set(method_problems(config, [np.zeros((1, 32))] * 2, [np.zeros((20, 32))])) == {"gpapf"}
+    results = run_experiment(one_frame, validation, test, config, out_dir=str(tmp_path), progress=False, animations=False)
+    assert "gpapf" in results["refused"] and "too few for a 3-D latent space" in results["refused"]["gpapf"]
+    assert set(results["sequences"]["test0"]) == {"sir"}
+    written = json.loads((tmp_path / "results.json").read_text())
+    assert written["complete"] and "gpapf" in written["refused"]
+    entry = written["sequences"]["test0"]["sir"]
+    assert entry["frame0_error_mm"] == pytest.approx(entry["per_frame_error_mm"][0], abs=0.01)
+    assert entry["start_error_mm"] < 1.0  # the file's own skeleton and pose: the start is the truth
+    assert written["bodies"]["test0"]["source"] == "file"
+    assert "refused" in (tmp_path / "table.md").read_text()
+
+
+def test_calibration_refuses_bad_settings_before_fitting(other_subject_scene):
+    motion, full, _ = other_subject_scene
+    rig = default_rig(40, 30)
+    likelihood = make_silhouette_likelihood(humaneva_body(), rig, scale=100.0, window=None)
+    observed = jnp.asarray(np.moveaxis(check_silhouettes(full.silhouettes, rig), 1, 0)[:2])
+    with pytest.raises(ValueError, match="looks like millimetres"):
+        calibrate_body(likelihood, motion.pose[:2], observed, height=1750.0)
+    with pytest.raises(ValueError, match="leading axis of 3 frames"):
+        calibrate_body(likelihood, motion.pose[:3], observed)
+
+
+@pytest.mark.slow
+def test_calibration_recovers_known_limb_lengths_and_radii():
+    """Clean 160x120 views in 4 cameras of a subject 8 % taller than the default with thighs 4 %
+    longer and upper arms 4 % shorter, capsules 15 % thicker: from the default body and the first
+    frame's pose (on the default skeleton) alone, the calibration finds the limb lengths within
+    1 cm (the spine and neck together: where the thorax sits between them the silhouettes barely
+    say) and the radii of the capsules that show within 10 %."""
+    subject = SubjectStyle("Y", height_scale=1.08, limb_lengths=(("thigh", 1.04), ("upper_arm", 0.96)), radius_scale=1.15)
+    motion = generate_motion("walk", subject, num_frames=4, fps=60.0, key=jax.random.key(0))
+    rig = default_rig(160, 120)
+    scene = build_scene(jax.random.key(1), motion, rig, NO_NOISE)
+    observed = np.moveaxis(check_silhouettes(scene.silhouettes, rig), 1, 0)
+    default = humaneva_body()
+    start = inverse_kinematics(scene.joints3d[:1], skeleton=default.skeleton, key=jax.random.key(0)).pose
+    likelihood = make_silhouette_likelihood(default, rig, scale=100.0, silhouettes=np.moveaxis(observed, 0, 1))
+    calibrated, _poses, report = calibrate_body(likelihood, np.repeat(np.asarray(start), 4, axis=0), jnp.asarray(observed))
+    true = subject.limb_lengths_m()
+    found = dict(zip(report.limb_names, report.lengths_after))
+    for limb in ("shoulder", "upper_arm", "forearm", "hip", "thigh", "shin"):
+        assert found[limb] == pytest.approx(true[limb], abs=0.01), limb
+    assert found["spine"] + found["neck"] == pytest.approx(true["spine"] + true["neck"], abs=0.01)
+    visible = [i for i, n in enumerate(default.capsule_names) if n not in ("lclavicle", "rclavicle", "neck")]
+    np.testing.assert_allclose(report.radii_after[visible], np.asarray(motion.body.radii)[visible], rtol=0.10)
+    assert report.cost_after < report.cost_before
+    np.testing.assert_allclose(np.asarray(calibrated.body.skeleton.offsets[9]), [0, 0, -found["thigh"]], atol=1e-5)
+    # A start pose a metre from the person: no body explains the silhouettes, and it says so.
+    far = np.repeat(np.asarray(start), 4, axis=0)
+    far[:, 0] += 1.5
+    with pytest.raises(ConfigurationError, match="the body calibration did not converge"):
+        calibrate_body(likelihood, far, jnp.asarray(observed))
+
+
+def test_the_command_line_refuses_a_height_that_is_not_a_persons(tmp_path, capsys):
+    from jaxtrack.cli import main
+
+    args = ["track", str(tmp_path / "missing.npz"), "--model", "m.eqx", "--validation", "v.npz", "--out", str(tmp_path / "out")]
+    assert main([*args, "--height", "1750"]) == 2
+    assert "--height 1750 looks like millimetres" in capsys.readouterr().err
+    assert main([*args, "--calibrate-body", "--body", "default"]) == 2
+    assert "contradict each other" in capsys.readouterr().err
+    assert main(["experiment", "--train", "a.npz", "--validation", "a.npz", "--test", "a.npz", "--height", "4"]) == 2
+    assert "not a person's height" in capsys.readouterr().err
