@@ -46,7 +46,9 @@ def main():
     parser.add_argument("--renderers", nargs="+", default=["capsules", "solid"], choices=["capsules", "solid"])
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS))
     parser.add_argument("--seed", type=int, default=0)
-    add_output_arguments(parser)
+    add_output_arguments(parser, plot="draw frame 0 of the walk in the first setting's views, rendered by both renderers, "
+                                      "to this PNG (docs/figures/solid_body.png) before the runs")
+    parser.add_argument("--plot-only", action="store_true", help="draw the figure and stop")
     args = parser.parse_args()
     pin_threads(args.threads)
     import jax
@@ -74,6 +76,13 @@ def main():
     )
 
     key = jax.random.key(args.seed)
+    subject = SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=RADIUS_FACTOR)
+    motions_x = [generate_motion(gait, subject, num_frames=args.frames, fps=60.0, key=jax.random.fold_in(key, 500 + i))
+                 for i, gait in enumerate(("walk", "jog"))]
+    if args.plot:
+        plot_renderers(motions_x[0], SETTINGS[args.settings[0]], args.plot)
+        if args.plot_only:
+            return
     train, validation, _, _ = demo_sequences(key)
     config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=100, seed=args.seed)
     train_poses = [sequence_poses(s, "train", key=key) for s in train]
@@ -88,9 +97,6 @@ def main():
         fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
     clearance = motion_clearance(validation, validation_poses)
 
-    subject = SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=RADIUS_FACTOR)
-    motions_x = [generate_motion(gait, subject, num_frames=args.frames, fps=60.0, key=jax.random.fold_in(key, 500 + i))
-                 for i, gait in enumerate(("walk", "jog"))]
     rows = []
     for setting in args.settings:
         views, width, height = SETTINGS[setting]
@@ -157,6 +163,41 @@ def main():
                     start = np.mean([v["start_error_mm"] for v in row["scenes"].values() if "refused" not in v])
                     print(f"| {row['condition']} | {start:.1f} | " + " | ".join(f"{row['methods'][m]['error_mm_mean']:.1f}"
                                                                           for m in args.methods) + " |")
+
+
+def plot_renderers(motion, setting, path):
+    """Frame 0 of ``motion`` in every view: the capsules (top) and the solid body (bottom)."""
+    import jax
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jaxtrack.camera import default_rig
+    from jaxtrack.data import NO_NOISE, SolidBody, build_scene
+
+    views, width, height = setting
+    rig = default_rig(width, height, num_views=views)
+    rows = [build_scene(jax.random.key(0), motion, rig, NO_NOISE, solid=solid).silhouettes[:, 0]
+            for solid in (None, SolidBody(motion.body.skeleton))]
+    fig, axes = plt.subplots(2, views, figsize=(2.2 * views, 4.2), squeeze=False)
+    for r, (masks, label) in enumerate(zip(rows, ("capsules (the tracker's body)", "SolidBody (ray-cast ellipsoids)"))):
+        for c in range(views):
+            ax = axes[r, c]
+            ax.imshow(masks[c], cmap="gray", interpolation="nearest")
+            ys, xs = (masks[c] > 0).nonzero()
+            pad = 6
+            ax.set_xlim(max(xs.min() - pad, 0), min(xs.max() + pad, width - 1))
+            ax.set_ylim(min(ys.max() + pad, height - 1), max(ys.min() - pad, 0))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if c == 0:
+                ax.set_ylabel(label, fontsize=8)
+    fig.suptitle("the test subject's walk, frame 0, clean silhouettes (cropped)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

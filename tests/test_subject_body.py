@@ -215,3 +215,13 @@ def test_the_command_line_refuses_a_height_that_is_not_a_persons(tmp_path, capsy
     assert "contradict each other" in capsys.readouterr().err
     assert main(["experiment", "--train", "a.npz", "--validation", "a.npz", "--test", "a.npz", "--height", "4"]) == 2
     assert "not a person's height" in capsys.readouterr().err
+
+
+def test_auto_does_not_calibrate_a_person_too_small_to_measure(other_subject_scene, capsys):
+    _, full, _ = other_subject_scene
+    video_only = full.replace(joints3d=None, skeleton_offsets=None, capsule_radii=None)  # a pose, nothing else
+    scene = prepare_test(video_only, "x.npz", key=jax.random.key(0))
+    assert scene.body_source == "default" and scene.body_calibration is None
+    assert "pixels tall: too small to calibrate limb lengths" in capsys.readouterr().err
+    taller = prepare_test(video_only, "x.npz", key=jax.random.key(0), height=1.9)
+    assert limb_lengths_of(taller.body)["thigh"] == pytest.approx(limb_lengths_of(humaneva_body())["thigh"] * 1.9 / 1.78, rel=1e-3)

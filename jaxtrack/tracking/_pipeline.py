@@ -9,6 +9,7 @@ float32; estimates come back as float64 NumPy arrays for the metrics.
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 import equinox as eqx
 import jax
@@ -29,6 +30,7 @@ from ..body import (
 )
 from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
+from ..errors import ConfigurationError
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import (
@@ -331,9 +333,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     tall = person_height_pixels(observed[:, 0])
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
     if wanted and body == "auto" and tall < MIN_CALIBRATION_PIXELS:
-        say(f"warning: {name}: the file has no skeleton, and the person is {tall:.0f} pixels tall: too small to calibrate limb "
-            f"lengths from (under {MIN_CALIBRATION_PIXELS}: docs/body.md); tracking with the default proportions"
-            + ("" if height is None else f" scaled to {height:g} m") + " (--calibrate-body to calibrate all the same)")
+        print(f"warning: {name}: the file has no skeleton, and the person is {tall:.0f} pixels tall: too small to calibrate limb "
+              f"lengths from (under {MIN_CALIBRATION_PIXELS}: docs/body.md); tracking with the default proportions"
+              + ("" if height is None else f" scaled to {height:g} m") + " (--calibrate-body to calibrate all the same)",
+              file=sys.stderr)
         wanted = False
         if height is not None:
             body_model = eqx.tree_at(lambda b: b.skeleton, body_model,
@@ -345,8 +348,15 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         say(f"{name}: calibrating the body's limb lengths and radii from the first {count} frames' silhouettes"
             f"{'' if height is None else f' (height {height:g} m)'}")
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
-        calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(truth_poses[:1], count, axis=0),
-                                                               jnp.asarray(observations[:count]), height=height)
+        try:
+            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(truth_poses[:1], count, axis=0),
+                                                                   jnp.asarray(observations[:count]), height=height)
+        except ConfigurationError as err:
+            if body == "calibrate":  # asked for: the failure is the answer
+                raise ConfigurationError(f"{name}: {err}") from None
+            print(f"warning: {name}: {err}; tracking with the default body", file=sys.stderr)
+            wanted = False
+    if wanted:
         body_model = body_of(calibrated)
         likelihood = with_body(likelihood, body_model)
         initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key)
