@@ -2,7 +2,7 @@
 
 The GPDM's predictive variance ``sigma_X^2(z)`` (001 eqs. 7-9) is fitted on the training
 trajectory, where the dynamics GP interpolates its own points. On another take of the motion it
-is wrong both ways (README, "GPDM latent noise"): measured on the validation takes, most steps
+is wrong both ways (docs/floor.md, "GPDM latent noise"): measured on the validation takes, most steps
 ``z_{t+1} - mu_X(z_t)`` of the projected poses are smaller than ``sigma_X``, and one in five to
 one in three is many times larger (the next pose is nearer another stretch of the learned cycle:
 another take's loop, or the other leg's phase). A Gaussian with the training variance leaves no

@@ -25,7 +25,7 @@ density, but a filter of a few hundred particles does not carry that density's p
 the silhouettes hold a limb loosely, resampling collapses the particles onto a few ancestors,
 whose weakly pulled limbs wander together, and the estimate wanders with them. Raising eq. 30's
 factor to the power lambda (its scales over ``sqrt(lambda)``) trades model fit for Monte Carlo
-error. The experiment's MRPF takes lambda = 4, chosen by tracking the validation takes (README,
+error. The experiment's MRPF takes lambda = 4, chosen by tracking the validation takes (docs/trackers.md,
 "Weighting MRPF's manifold").
 
 With ``tied`` groups of joint angles (``body.mirrored_groups``: a left angle and its right

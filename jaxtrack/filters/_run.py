@@ -72,7 +72,7 @@ def run_filter(
             XLA partitions the step and gathers across devices where resampling needs it. The
             same key gives the same result as unsharded, up to the order of floating-point sums.
             With ``jax.distributed.initialize()`` the mesh may span processes on several
-            machines (README, "Several devices").
+            machines (docs/trackers.md, "Several devices").
 
     Returns:
         ``(final_state, infos)`` with every ``StepInfo`` field stacked over T frames.

@@ -102,7 +102,7 @@ def _systematic(mask: Float[Array, " pixels"], count: int, key: PRNGKeyArray):
     return index, jnp.full((count,), total.astype(jnp.float32) / count, jnp.float32)
 
 
-# The image-size rule behind ``pixel_samples="auto"`` (README, "Large images"): measured with MRPF
+# The image-size rule behind ``pixel_samples="auto"`` (docs/likelihood.md, "Large images"): measured with MRPF
 # on the demo's walk and jog, every pixel is cheap up to 160x120; at 320x240, 2048 samples tracked
 # within 5 % of every pixel at 7 times the speed; at 640x480, 4096 samples within 4 % (2048 lost
 # 6-8 %).

@@ -11,7 +11,7 @@ agree ("spatially similar but temporally distant data points can still be placed
 another take's points against 10-16 for the plain GPDM (in 3-D 3-7 against 5-7), and the largest
 step along an arc is 2-4 median steps against 10-37.
 
-What it does to tracking depends on the training set (README, "A back-constrained GPDM"): on one
+What it does to tracking depends on the training set (docs/trackers.md, "A back-constrained GPDM"): on one
 activity's takes it keeps every run of LatentPF (80 on the real-motion table, sd at most 4 mm,
 where on the plain GPDM it loses the CMU jogger), but where walks and jogs train one manifold it
 draws them together too, and LatentPF on it loses the demo's walk (77 mm). The kernel's width

@@ -8,7 +8,7 @@ safeguarded quadratic interpolation (N&W eq. 3.57) from a step too long, forward
 from one too short, by bisection once both are known. The line search is a state of the loop, not a
 loop of its own, so the objective's code appears once in the compiled program: a GP fit
 compiles in about half the time of optax's L-BFGS with its zoom line search, whose initial
-evaluation and search each hold a copy (README, "Fitting a manifold").
+evaluation and search each hold a copy (docs/manifolds.md, "Fitting a manifold").
 
 A pair with too little curvature (``s'y <= 1e-10 |s| |y|``, possible only when a search ends
 on its fallback) is not stored; a direction that is not downhill is replaced by steepest

@@ -424,7 +424,7 @@ def make_gpdm(sequences, latent_dim: int = 3, *, scale: bool = True, init: str =
     PCA start). Where a half-cycle feature outweighs the stride's quarter-phase partner, a 2-D
     PCA start folds each gait cycle into a thin loop, phase phi beside phase pi - phi (the demo's
     motion does; the CMU walk does not); the GLE's temporal and stylistic graph lays each cycle
-    out as a circle (README, "Where a 2-D GPDM starts"). A sequence in which no repeated cycle
+    out as a circle (docs/trackers.md, "Where a 2-D GPDM starts"). A sequence in which no repeated cycle
     is found is one piece of the GLE's graph; ``fit_spectral``'s errors name what is too short.
     """
     if init not in GPDM_STARTS:

@@ -17,7 +17,7 @@ FINAL_LAYER_SCALE = 0.5  # the final layer's steps, relative to the pose random 
 # (dynamics._latent_noise): 001 uses the GPDM's own predictive variance ("gpdm"). Over 20 runs
 # on both Bandai runs (the tuned 005 and the held-out 006; 4 and 3 views) the fitted mixture
 # took GPAPF's drift ratio from 1.36-1.49 to 0.91-1.11 and its lost runs from 1-9 of 20 to 0-3;
-# even elsewhere (README, "The floor", GPAPF on the held-out Bandai run).
+# even elsewhere (docs/floor.md, "The floor", GPAPF on the held-out Bandai run).
 LATENT_NOISE = "validation"
 
 
@@ -36,7 +36,7 @@ def build(fitted, likelihood, budget):
 
 # 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here: on real motion rendered
 # with another body it was better than 2 on all eight walk, jog and run rows, by 0.6-11 mm
-# (README, "Where the manifold trackers start").
+# (docs/trackers.md, "Where the manifold trackers start").
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("gpapf", "GPAPF", "annealed filter over (global pose, latent point) with a final full-pose layer (001)",

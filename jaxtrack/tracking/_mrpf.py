@@ -17,7 +17,7 @@ def _latent_proposal(manifold):
 
 
 # A left joint angle and its right mirror share eq. 28's scales, fitted on both together: on the
-# real takes it gained on six rows of eight (README, "Left and right share MRPF's pull").
+# real takes it gained on six rows of eight (docs/trackers.md, "Left and right share MRPF's pull").
 MIRRORED_ANGLES = mirrored_groups(humaneva_skeleton().dof_names[3:])
 
 
@@ -30,7 +30,7 @@ def _mirrored(manifold):
 # Eq. 30's factor to the power 4 (its scales halved), chosen among 1, 2, 4 and 8 by tracking the four
 # real-motion protocols' validation takes, never their test takes: 8 scored 1.1 mm lower summed over
 # 8 cells of 15 runs, within its standard error of 1.2 mm, so the smaller change from the fit won
-# (the one-standard-error rule; README, "Weighting MRPF's manifold").
+# (the one-standard-error rule; docs/trackers.md, "Weighting MRPF's manifold").
 MANIFOLD_WEIGHT = 4.0
 
 
@@ -50,7 +50,7 @@ def build(dynamics, likelihood, budget):
 
 
 # 000 sec. 6.1: a 2-D latent space. (In 3-D, on real motion rendered with another body, one CMU jog
-# run of five was lost, 207 mm; README, "Where the manifold trackers start".)
+# run of five was lost, 207 mm; docs/trackers.md, "Where the manifold trackers start".)
 LATENT_DIM = 2
 
 RECIPE = TrackerRecipe("mrpf", "MRPF", "manifold regularised particle filter, eq. 28 sampled exactly (000)", fit_product, build,

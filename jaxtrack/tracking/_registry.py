@@ -119,7 +119,7 @@ class TrackerRecipe:
             (``dynamics.StateVelocity``) unless the experiment says otherwise for every tracker:
             on for the one-layer manifold trackers, whose step is the prior's; off for the
             annealed ones, whose layers find the step in the likelihood, and for the plain
-            baselines (README, "Dynamics that move").
+            baselines (docs/trackers.md, "Dynamics that move").
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
         latent_dim: the latent dimension of the tracker's manifold unless the experiment names
