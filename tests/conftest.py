@@ -9,6 +9,22 @@ jax.config.update("jax_enable_x64", True)
 # The command line keeps compiled programs in ~/.cache unless told otherwise: not from the tests
 # (test_cli.py checks the cache in a subprocess of its own).
 os.environ["JAXTRACK_CACHE_DIR"] = "off"
+# The tests' own compiled programs are kept on disk (JAX's persistent cache), shared by the
+# pytest-xdist workers and by later runs: half of a cold test run is XLA compiling programs that
+# another test or worker already compiled. JAX_COMPILATION_CACHE_DIR chooses the folder ("off":
+# none); .ci/run points the notebooks' kernels at the same one.
+_CACHE = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".pytest_jax_cache"))
+if _CACHE.strip().lower() not in ("", "off"):
+    jax.config.update("jax_compilation_cache_dir", os.path.abspath(_CACHE))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+else:
+    jax.config.update("jax_compilation_cache_dir", None)
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per core this process may use, at most 4 (each holds 2-4 GiB of
+    compiled programs)."""
+    return max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1))
 
 SHARED_DATA = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
 
