@@ -237,7 +237,8 @@ def test_a_second_call_loads_its_compiled_trackers_from_the_cache(tmp_path):
         argv = [*extra, "track", str(test), "--method", "sir", "--model", str(model), "--validation", str(test), "--budget", "16",
                 "--out", str(tmp_path / "est")]
         code = "import sys; from jaxtrack.cli import main; sys.exit(main(sys.argv[1:]))"
-        done = subprocess.run([sys.executable, "-c", code, *argv], env={**os.environ, "JAXTRACK_CACHE_DIR": env_cache},
+        env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}  # the tests' own cache (conftest.py)
+        done = subprocess.run([sys.executable, "-c", code, *argv], env={**env, "JAXTRACK_CACHE_DIR": env_cache},
                               capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, done.stderr
         return sorted(p.name for p in cache.rglob("*") if p.is_file()) if cache.exists() else []
