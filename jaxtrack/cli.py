@@ -418,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
     experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
     experiment.add_argument("--fit-optimiser", choices=("optax", "lbfgs"), default="optax",
-                            help="the manifold fit's L-BFGS: optax's with its zoom line search (default, the fit of the README's "
+                            help="the manifold fit's L-BFGS: optax's with its zoom line search (default, the fit of the docs' "
                                  "tables) or one evaluation per loop iteration (lbfgs: compiles in about half the time)")
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")

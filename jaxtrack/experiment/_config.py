@@ -29,7 +29,7 @@ class ExperimentConfig:
             One manifold is fitted per (kind, latent dimension) the trackers need.
         fit_steps: L-BFGS iterations for the manifold.
         fit_optimiser: the manifold fit's L-BFGS (``jaxtrack.manifold.fit_model``): "optax"
-            (default: optax's, zoom line search; every tracking table of the README was measured
+            (default: optax's, zoom line search; every tracking table of docs/trackers.md was measured
             with it) or "lbfgs" (one evaluation per loop iteration: compiles in about half the
             time; the default once those tables are measured again with it)
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.

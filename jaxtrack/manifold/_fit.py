@@ -160,7 +160,7 @@ def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: f
         chunk: the former name of ``report_every`` (the steps between checks).
         optimiser: "lbfgs" (one objective evaluation per loop iteration, ``_lbfgs``; compiles
             in about half the time) or "optax" (optax's L-BFGS with its zoom line search and
-            10 pairs, the fit the README's tracking tables were measured with).
+            10 pairs, the fit the tracking tables of docs/trackers.md were measured with).
         memory: curvature pairs of "lbfgs" (default 100).
 
     Returns:

@@ -1,7 +1,7 @@
 """MRPF (000 Alg. 1): SIR with the manifold-regularised transition of 000 eqs. 27-30, drawn
 exactly from eq. 28 ("mrpf") or as Alg. 1 prints it ("mrpf-alg1"). On a BC-GPLVM (000's
 manifold, and "mrpf-alg1"'s default) the latent draw is eq. 27's; on a GPDM ("mrpf"'s default:
-measured better on the real and the synthetic jogs, README) the GPDM's predictive dynamics
+measured better on the real and the synthetic jogs, docs/trackers.md) the GPDM's predictive dynamics
 from the particle's own latent point. "mrpf" fits eq. 28's scales with each left joint angle and
 its right mirror sharing theirs, and raises eq. 30's factor to ``MANIFOLD_WEIGHT``; "mrpf-alg1"
 fits per angle, as printed."""

@@ -104,7 +104,7 @@ class TrackerRecipe:
     Attributes:
         name: the registry name (``--methods NAME``).
         label: the column header in tables and plots.
-        description: one line for ``--help`` and the README.
+        description: one line for ``--help`` and the docs.
         fit: ``(key, MotionData) -> fitted`` (a dynamics module, or a pytree of them), run once
             per experiment in float64.
         build: ``(fitted, likelihood, Budget) -> AbstractFilter``, run per test sequence on the
