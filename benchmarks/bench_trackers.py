@@ -42,7 +42,6 @@ def main():
         motion_data,
         prepare_test,
         sequence_poses,
-        tracker_index,
         tracker_keys,
     )
 
@@ -52,7 +51,7 @@ def main():
     train_poses = [sequence_poses(s, "train", key=key) for s in train]
     model, _, starts = fit_manifold(train_poses, 2, 100)
     motion = motion_data(train_poses, [sequence_poses(s, "validation", key=key) for s in validation], model, starts)
-    fitted = {m: fit_tracker(get_tracker(m), tracker_keys(0, tracker_index(m))[0], motion) for m in ["sir"] + methods}
+    fitted = {m: fit_tracker(get_tracker(m), tracker_keys(0, m)[0], motion) for m in ["sir"] + methods}
     scene = prepare_test(test[0], "S1 walk", key=key)
     rows = []
     for budget in args.budgets:

@@ -71,7 +71,6 @@ def main():
         prepare_test,
         sequence_poses,
         track_runs,
-        tracker_index,
         tracker_keys,
     )
 
@@ -93,7 +92,7 @@ def main():
         motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
     fitted, roots = {}, {}
     for method in args.methods:
-        fit_key, roots[method] = tracker_keys(args.seed, tracker_index(method))
+        fit_key, roots[method] = tracker_keys(args.seed, method)
         fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
     clearance = motion_clearance(validation, validation_poses)
 

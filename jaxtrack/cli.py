@@ -98,47 +98,60 @@ def _fit(args) -> int:
     jax.config.update("jax_enable_x64", True)  # GP training in float64
     import numpy as np
 
-    from .body import GLOBAL_DOFS, joint_angles
+    from .body import GLOBAL_DOFS
     from .io import check_output, load_sequence
-    from .manifold import SPECTRAL_GRAPHS, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm, make_gplvm, make_sparse_gplvm, save_model
-    from .tracking import DEFAULT_LATENT_DIMS
+    from .manifold import get_manifold_kind, save_model
+    from .tracking import fit_manifold
 
     args.out = check_output(args.out, args.motion)
-    sequences, names = [], []
+    kind = get_manifold_kind(args.model)
+    options = _options(args.manifold_option, kind.options, f"manifold kind {kind.name!r}")
+    if args.inducing is not None:
+        if "num_inducing" not in kind.options:
+            raise ValueError(f"--inducing is an option of sparse-gplvm, not of {kind.name}")
+        options["num_inducing"] = args.inducing
+    poses, names, layouts = [], [], set()
     for path in args.motion:
         seq = load_sequence(path)
         if seq.pose is None:
             raise ValueError(f"{path}: has no 'pose' key (make one with 'jaxtrack convert')")
-        layout = [str(n) for n in seq.pose_layout]
-        # The manifold models joint angles only, not the global position and orientation.
-        sequences.append(joint_angles(np.asarray(seq.pose)))
+        layouts.add(tuple(str(n) for n in seq.pose_layout))
+        poses.append(np.asarray(seq.pose, np.float64))
         names.append(os.path.basename(path))
-    layouts = {len(s[0]) for s in sequences}
-    if len(layouts) != 1:
+    if len(layouts) != 1 or len({p.shape[1] for p in poses}) != 1:
         raise ValueError("the motion files have different pose layouts")
-    Y = np.concatenate(sequences)
-    starts = tuple(int(v) for v in np.cumsum([0] + [len(s) for s in sequences]))
-    if args.latent_dim is None:
-        args.latent_dim = DEFAULT_LATENT_DIMS.get(args.model, 2)
-    if args.model in SPECTRAL_GRAPHS:
-        model = fit_spectral(sequences, args.model, latent_dim=args.latent_dim)
-    elif args.model == "gplvm":
-        model = make_gplvm(Y, args.latent_dim)
-    elif args.model == "bc-gplvm":
-        model = make_bc_gplvm(Y, args.latent_dim)
-    elif args.model == "bc-gplvm-mlp":
-        model = make_bc_gplvm(Y, args.latent_dim, back_constraint="mlp", key=jax.random.key(args.seed))
-    elif args.model == "sparse-gplvm":
-        model = make_sparse_gplvm(Y, args.latent_dim, num_inducing=min(args.inducing, Y.shape[0]))
-    elif args.model == "bc-gpdm":
-        model = make_bc_gpdm(sequences, args.latent_dim)
-    else:
-        model = make_gpdm(sequences, args.latent_dim)
-    fitted, info = model.fit(max_steps=args.steps, progress=True)
-    kept_layout = layout[GLOBAL_DOFS:]
+    # The manifold models joint angles only, not the global position and orientation: the same
+    # fit as ``jaxtrack experiment``'s (tracking.fit_manifold, the key from --seed).
+    fitted, info, starts = fit_manifold(poses, args.latent_dim, args.steps, kind=kind.name, progress=True,
+                                        optimiser=args.optimiser, key=jax.random.key(args.seed), **options)
+    kept_layout = list(next(iter(layouts)))[GLOBAL_DOFS:]
     save_model(args.out, fitted, sequence_starts=starts, extra={"pose_layout": kept_layout, "sequences": names})
-    print(f"wrote {args.out}: {type(fitted).__name__}, {Y.shape[0]} frames, objective {info.objective:.6g} after {info.steps} steps")
+    print(f"wrote {args.out}: {type(fitted).__name__}, {starts[-1]} frames, objective {info.objective:.6g} after {info.steps} steps")
     return 0
+
+
+def _options(pairs, defaults, what: str) -> dict:
+    """``KEY=VALUE`` strings as options of ``what``, each value parsed as the type of its default."""
+    options = {}
+    for pair in pairs or ():
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise ValueError(f"an option is KEY=VALUE, got {pair!r}")
+        if key not in defaults:
+            raise ValueError(f"{what} takes no option {key!r} (it takes: {', '.join(defaults) or 'none'})")
+        default = defaults[key]
+        try:
+            if isinstance(default, bool):
+                if value.lower() not in ("true", "false", "1", "0", "yes", "no"):
+                    raise ValueError(value)
+                options[key] = value.lower() in ("true", "1", "yes")
+            elif isinstance(default, (int, float)):
+                options[key] = type(default)(value)
+            else:
+                options[key] = value
+        except ValueError:
+            raise ValueError(f"option {key} of {what} must be a {type(default).__name__}, got {value!r}") from None
+    return options
 
 
 def _plot_latent(args) -> int:
@@ -171,7 +184,7 @@ def _experiment(args) -> int:
         calibrate_shape=args.calibrate_shape, ground_prior=args.ground_prior, resolution=args.resolution,
         pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=_body_choice(args), height=args.height,
         refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
-        residual=args.residual,
+        residual=args.residual, likelihood=args.likelihood, likelihood_options=_likelihood_options(args),
     )
     from .io import check_folder
 
@@ -237,7 +250,7 @@ def _track(args) -> int:
         likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
         ground_prior=args.ground_prior, refine_steps=args.refine_steps, velocity=args.velocity,
         pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=body, height=args.height,
-        residual=args.residual,
+        residual=args.residual, likelihood=args.likelihood, likelihood_options=_likelihood_options(args),
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
@@ -329,8 +342,26 @@ def load_plugins(argv) -> None:
             importlib.import_module(plugin)
 
 
+def _likelihood_arguments(parser) -> None:
+    from .likelihood import DEFAULT_LIKELIHOOD, available_likelihoods, get_likelihood
+
+    parser.add_argument("--likelihood", choices=available_likelihoods(), default=DEFAULT_LIKELIHOOD,
+                        help="a registered likelihood: " + "; ".join(f"{n}: {get_likelihood(n).description}"
+                                                                     for n in available_likelihoods()) + " (default: %(default)s)")
+    parser.add_argument("--likelihood-option", action="append", metavar="KEY=VALUE",
+                        help="an option of the likelihood (e.g. edge_width=1.5 for silhouette)")
+
+
+def _likelihood_options(args) -> dict:
+    from .likelihood import get_likelihood
+
+    recipe = get_likelihood(args.likelihood)
+    return _options(args.likelihood_option, recipe.options, f"likelihood {recipe.name!r}")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from .tracking import GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, available_trackers
+    from .manifold import DEFAULT_OPTIMISER, OPTIMISERS, get_manifold_kind, manifold_kinds
+    from .tracking import GRADIENT_COST, PAPER_TRACKERS, available_trackers
 
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -388,14 +419,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
-    fit.add_argument("--model", choices=("gplvm", "bc-gplvm", "bc-gplvm-mlp", "sparse-gplvm", "gpdm", "bc-gpdm", "gle", "tle", "le"),
-                     default="bc-gplvm", help="a GP model (fitted by L-BFGS), or a Laplacian Eigenmap (closed form) with its "
-                                              "RBF networks: gle (002; the files' gait cycles are its repetitions), tle "
-                                              "(temporal neighbours), le (nearest neighbours in pose space) (default: %(default)s)")
-    fit.add_argument("--inducing", type=int, default=150, help="inducing points of sparse-gplvm (default: %(default)s)")
+    fit.add_argument("--plugin", action="append", default=[],
+                     help="a module (dotted name or .py file) to import first; it may register manifold kinds")
+    fit.add_argument("--model", choices=manifold_kinds(), default="bc-gplvm",
+                     help="a registered manifold kind: " + "; ".join(f"{k}: {get_manifold_kind(k).description}"
+                                                                    for k in manifold_kinds()) + " (default: %(default)s)")
+    fit.add_argument("--manifold-option", action="append", metavar="KEY=VALUE",
+                     help="an option of the manifold kind's maker (e.g. num_inducing=100 for sparse-gplvm)")
+    fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")
     fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
-    fit.add_argument("--latent-dim", type=int, help="latent dimension (default: 2 for the GP models, 3 for gle, tle, le)")
-    fit.add_argument("--steps", type=int, default=500, help="L-BFGS iterations at most (default: %(default)s)")
+    fit.add_argument("--latent-dim", type=int, help="latent dimension (default: the kind's own: 2 for the GP models, 3 for gle, tle, le)")
+    fit.add_argument("--steps", type=int, default=300,
+                     help="L-BFGS iterations at most (default: %(default)s, as jaxtrack experiment's --fit-steps)")
+    fit.add_argument("--optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
+                     help="the GP models' L-BFGS (default: %(default)s, as jaxtrack experiment's --fit-optimiser)")
     fit.add_argument("--out", required=True, help="output model file (e.g. model.eqx)")
     fit.set_defaults(run=_fit)
 
@@ -417,9 +454,11 @@ def build_parser() -> argparse.ArgumentParser:
                             help="latent dimension of every manifold (default: each tracker's own, MRPF 2, GPAPF and LatentPF 3; "
                                  "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
     experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
-    experiment.add_argument("--fit-optimiser", choices=("optax", "lbfgs"), default="optax",
-                            help="the manifold fit's L-BFGS: optax's with its zoom line search (default, the fit of the docs' "
-                                 "tables) or one evaluation per loop iteration (lbfgs: compiles in about half the time)")
+    experiment.add_argument("--fit-optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
+                            help="the manifold fit's L-BFGS: one evaluation per loop iteration (lbfgs, the default: compiles in "
+                                 "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
+                                 "measured before 2026-11-26)")
+    _likelihood_arguments(experiment)
     experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
     experiment.add_argument("--seed", type=int, default=0)
@@ -445,10 +484,11 @@ def build_parser() -> argparse.ArgumentParser:
                             help="give every tracker's dynamics (--no-velocity: none) a Kalman-tracked velocity of the root (and "
                                  "of the pose or latent point where the dynamics support it) fitted on the validation motion "
                                  f"(default: each tracker's own: {_velocity_defaults()})")
-    experiment.add_argument("--manifold", choices=MANIFOLD_KINDS,
-                            help="the manifold of every manifold tracker of its family (GP: bc-gplvm, gpdm, bc-gpdm; Laplacian "
-                                 "Eigenmaps: gle, tle, le; the other family keeps its own) (default: each tracker's own: "
-                                 f"{_manifold_defaults()})")
+    experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
+                            help="the manifold of every manifold tracker of its family (GP: "
+                                 f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "
+                                 f"{', '.join(manifold_kinds(family='spectral', trackable=True))}; the other family keeps its "
+                                 f"own) (default: each tracker's own: {_manifold_defaults()})")
     experiment.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("every tracker"))
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
@@ -464,6 +504,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
     track.add_argument("--budget", type=int, default=500)
     track.add_argument("--layers", type=int, default=5)
+    _likelihood_arguments(track)
     track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
     track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")

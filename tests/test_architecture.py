@@ -45,7 +45,7 @@ def test_no_package_imports_a_private_module_of_another():
 
 
 def _outside_sources():
-    for folder in ("tests", "benchmarks"):
+    for folder in ("tests", "benchmarks", "experiments"):
         for path in (ROOT / folder).rglob("*.py"):
             yield path, path.read_text()
     for path in (ROOT / "notebooks").glob("*.ipynb"):

@@ -83,6 +83,7 @@ def test_per_subject_limb_lengths():
         humaneva_skeleton({"thigh": -0.4})
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_fk_gradient_matches_finite_differences(skeleton, getkey):
     pose = random_poses(getkey(), skeleton, 1)[0]
     direction = jax.random.normal(getkey(), pose.shape)
@@ -93,6 +94,7 @@ def test_fk_gradient_matches_finite_differences(skeleton, getkey):
     )
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_fk_jit_vmap_consistency(skeleton, getkey):
     poses = random_poses(getkey(), skeleton, 5)
     batched = forward_kinematics(skeleton, poses)

@@ -68,6 +68,7 @@ def test_commands_refuse_to_write_over_their_inputs_before_any_work(tmp_path, ca
     assert "is one of the input files" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_a_camera_that_cannot_see_the_person_is_refused_before_tracking():
     """One camera turned to face away, or moved so the body is outside its image: the filter
     would run on uniform weights in that view; refused, naming the camera, before any jit."""

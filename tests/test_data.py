@@ -72,6 +72,7 @@ def test_scene_is_deterministic_and_noisy():
     assert 0.005 < changed < 0.1  # noisy, but still a silhouette
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_noise_effects_individually():
     motion = generate_motion("walk", "S1", num_frames=4, fps=30.0)
     rig = default_rig(80, 60)
@@ -105,6 +106,7 @@ def test_scene_refuses_nan_poses():
         build_scene(jax.random.key(0), dataclasses.replace(motion, pose=pose), default_rig(40, 30))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_scene_from_a_recorded_sequence(tmp_path):
     """A sequence file's motion renders like the motion itself; centring moves the root path's
     midpoint (and the ground truth with it) to the capture area's centre; the CLI writes a test

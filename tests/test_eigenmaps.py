@@ -120,6 +120,7 @@ def test_subsequence_dtw_finds_a_time_warped_copy():
     assert end == 64 and 20 <= int(start[end]) <= 23, (int(start[end]), end)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_stylistic_neighbours_align_two_repetitions_by_phase():
     """Two repetitions of one loop at different speeds (60 and 90 frames) and a phase offset:
     every frame's neighbour in the other repetition has its phase (to one frame's spacing)."""

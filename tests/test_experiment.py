@@ -152,6 +152,7 @@ def test_experiment_calibrates_the_body_first(sequences, tmp_path):
     assert json.loads((tmp_path / "results.json").read_text())["config"]["calibrate_shape"] is True
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_experiment_saves_each_tracker_as_it_goes(sequences, tmp_path, monkeypatch):
     """An experiment that fails part-way keeps, in results.json and table.md, every tracker that
     finished (``complete`` false); the table marks the ones not run."""

@@ -109,6 +109,7 @@ def test_sir_matches_kalman_filter(getkey):
     assert abs(evidence.mean() - expected_evidence) < max(4 * evidence.std(), 0.1)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_same_key_same_result_jitted_or_not(getkey):
     _, ys = linear_gaussian_data(getkey(), frames=3)
     key = getkey()
@@ -144,6 +145,7 @@ def test_apf_anneals_to_the_survival_target_and_tracks(getkey):
     assert np.abs(np.asarray(info.estimate) - np.asarray(ys)).mean() < 0.1
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_partitioned_annealing_moves_each_layers_entries_only(getkey):
     """Partitions naming every entry in every layer are plain annealing, bit for bit; with a flat
     likelihood (weights equal, resampling a random permutation in distribution) a layer that
@@ -178,6 +180,7 @@ def shifted_likelihood(poses, y):
     return gaussian_likelihood(poses, y + 0.5)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_coarse_to_fine_layers_score_with_the_coarse_likelihood(getkey):
     """Coarse-to-fine annealing: a coarse likelihood equal to the fine one is plain annealing, bit
     for bit; every layer coarse is plain annealing on the coarse likelihood, bit for bit; and with
@@ -216,6 +219,7 @@ def test_coarse_layers_are_checked_before_tracking():
         make_apf(gaussian_likelihood, Q, 10, num_layers=3, coarse_likelihood=gaussian_likelihood, coarse_layers=1)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_apf_final_layer_is_a_layer_after_the_annealing_and_traces_the_likelihood_once(getkey):
     """The final full-pose layer (001 Alg. 3), run inside the annealing scan, equals the APF
     without it followed by one ``smc_layer`` of the final dynamics on the annealed particles'
@@ -334,6 +338,7 @@ def test_mrpf_with_an_overflowing_manifold_scale_stays_finite(walk_prior, getkey
     np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
     """With a flat image likelihood, one MRPF step with the product proposal is a sample of
     000 eqs. 27-28: its moments match a direct Monte-Carlo of z ~ N(g(x0), s_xz^2),
@@ -365,6 +370,7 @@ def test_mrpf_product_proposal_samples_the_transition(walk_prior, getkey):
         make_mrpf(flat, prior, s_xx, 0.05, s_zx, 10, proposal="optimal")
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_latent_filters_follow_the_manifold(walk_prior, getkey):
     """GPAPF and LatentPF estimate poses on the manifold close to the observed target poses."""
     prior, poses = walk_prior
@@ -386,6 +392,7 @@ def test_latent_filters_follow_the_manifold(walk_prior, getkey):
         make_mrpf(pose_likelihood, plain, 0.02, 0.1, 0.1, 10)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_dynamics_fitted_on_validation(walk_prior, getkey):
     """Each dynamics fits its own parameters: the RMS step for the pose walk, the global RMS step
     and the training latent RMS step for the latent walk, and MRPF's joint fit."""
@@ -427,6 +434,7 @@ def eq28_pairs(key, s_xx, s_zx, t):
     return previous, mu, current
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_transition_scales_recover_the_generating_ones(getkey):
     """Pose pairs drawn from 000 eq. 28 (normalised) with known s_xx, s_zx: the maximum-likelihood
     fit recovers them, the objective's autodiff gradient vanishes there, and moving any log-scale
@@ -447,6 +455,7 @@ def test_transition_scales_recover_the_generating_ones(getkey):
             assert float(objective(at.at[i].add(step))) < float(objective(at))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
     """Angles 0 and 2 drawn with the same eq. 28 scales and tied: the fit recovers that pair once
     for both and angle 1's own; it scores at least the untied fit's scales pooled per group.
@@ -487,6 +496,7 @@ def test_tied_transition_scales_share_one_pair_per_group(walk_prior, getkey):
 
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_manifold_weight_raises_eq30_to_its_power(walk_prior, getkey):
     """``manifold_weight`` lambda: the same fit (same key) with eq. 30's scales over sqrt(lambda),
     eq. 29's unchanged; so the transition's density is eq. 29 times eq. 30 to the power lambda,
@@ -657,6 +667,7 @@ def kalman_posterior(x0, ys):
     return mean, var
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize(("step_size", "adapt"), [(0.5, True), (3.0, False)])
 def test_mala_refined_sir_keeps_the_kalman_posterior(getkey, step_size, adapt):
     """Resample-move with MALA leaves the filtering posterior unchanged: the refined SIR's final
@@ -765,6 +776,7 @@ def test_refinement_needs_a_transition_density():
 # ----------------------------------------------------------------------------- contracts and chunked runs
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_chunked_run_equals_one_scan_and_reports_each_chunk(getkey):
     """``chunk_frames`` tracks a few frames at a time with the state carried: the same per-frame
     keys, so the same result as one scan, and ``on_chunk`` sees the estimates so far."""

@@ -134,7 +134,7 @@ def test_motion_readers_never_crash_hang_or_return_nonsense(motion_files, edited
 @pytest.fixture(scope="module")
 def sequence_file(tmp_path_factory):
     folder = tmp_path_factory.mktemp("sequence")
-    path = save_sequence(folder / "scene.npz", small_scene(num_frames=3, width=16, height=12)[-1])
+    path = save_sequence(folder / "scene.npz", small_scene()[-1])  # the scene other modules build too (one compile)
     with np.load(path) as archive:
         return folder, path, {k: archive[k] for k in archive.files}
 

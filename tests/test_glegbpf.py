@@ -94,6 +94,7 @@ def test_the_triple_resampling_draws_with_the_probabilities_it_claims():
     assert chisquare(counts, expected * n).pvalue > 1e-3, (counts, expected * n)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize("graph", ["le", "tle", "gle"])
 def test_spectral_manifolds_fit_save_load_and_serve_the_trackers(graph, tmp_path):
     """LE, temporal LE and GLE behind the manifold interface: the objective is minus the sum of

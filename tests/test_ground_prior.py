@@ -40,6 +40,7 @@ def test_values_match_a_reference_and_are_flat_above_the_clearance(walk):
     assert float(prior(poses.at[:, 2].add(-0.1), None).max()) < -1.0  # 10 cm into the floor costs nats
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gradient_matches_finite_differences(walk):
     prior = make_ground_prior(humaneva_skeleton(dtype=jnp.float64), 0.1, tolerance=0.01)
     pose = jnp.asarray(walk.pose[5], jnp.float64).at[2].add(-0.04)  # one or both ankles below the clearance
@@ -109,6 +110,7 @@ def test_bad_input_is_refused_with_a_clear_error(walk):
         GroundPlanePrior(skeleton=skeleton, clearance=jnp.asarray(0.1), tolerance=jnp.asarray(0.01), floor_height=jnp.asarray(0.0))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_the_prior_removes_the_noisy_silhouettes_pull_on_the_root():
     """In noisy views the silhouettes prefer the body lower than it is (shadows and a ragged
     lower edge); times the ground prior, fitted on another take, the preferred root height is

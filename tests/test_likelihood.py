@@ -51,6 +51,7 @@ def test_cost_bounds_and_zero_at_perfect_match():
     assert np.all(np.isfinite(grad))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize("case", ["fits", "some_overflow", "all_dense"])
 def test_windowed_matches_dense(scene, getkey, case):
     """The windowed evaluation equals the dense reference when every particle-view fits, when
@@ -77,6 +78,7 @@ def test_windowed_matches_dense(scene, getkey, case):
     np.testing.assert_allclose(overlap_w, overlap_d, rtol=1e-5, atol=1e-9)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_fast_likelihood_matches_dense_reference_float32(getkey):
     """The headline check in the working precision: relative error below 1e-5."""
     motion, rig, seq = small_scene(num_frames=4, width=80, height=60)
@@ -93,6 +95,7 @@ def test_fast_likelihood_matches_dense_reference_float32(getkey):
     np.testing.assert_allclose(a, b, rtol=1e-5)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_true_pose_scores_best_on_noisy_scene(getkey):
     """At the working resolution (80x60) the true pose beats 100 perturbations in every frame."""
     motion, rig, seq = small_scene(num_frames=4, width=80, height=60)
@@ -118,6 +121,7 @@ def test_likelihood_gradient_matches_finite_differences(scene, getkey):
     finite_difference_check(f, pose, jax.random.normal(getkey(), (32,)) * 0.1, rtol=1e-4, atol=1e-8)  # checks finiteness too
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_jit_vmap_and_no_jit_agree(scene, getkey):
     motion, rig, _seq, observed = scene
     lik = make_silhouette_likelihood(motion.body, rig, silhouettes=observed)
@@ -261,6 +265,7 @@ def test_a_coarse_level_scores_like_every_pixel_of_a_large_image():
     assert np.corrcoef(cost_coarse, cost_fine)[0, 1] > 0.97
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_coarse_likelihood_scores_the_block_averaged_silhouettes_on_resized_cameras(scene, getkey):
     """``coarsen_likelihood``: factor 1 is the likelihood itself (to rounding); factor 2 equals the
     silhouette likelihood of the half-size rig on the silhouettes ``jaxtrack.image`` downsamples

@@ -128,6 +128,7 @@ CORPUS = {
 }
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize("case", list(CORPUS))
 def test_malformed_input_gives_one_line_naming_the_file(case, tmp_path, capsys):
     build, where, reason = CORPUS[case]

@@ -69,6 +69,7 @@ def test_autodiff_matches_hand_derived_equations_17_18(small_model):
     np.testing.assert_allclose(auto, grad, rtol=1e-8, atol=1e-10)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gradients_match_finite_differences(walk_jog, getkey):
     walk, _jog = walk_jog
     Y = walk.pose[:30, 6:]
@@ -103,6 +104,7 @@ def test_predictive_interpolates_and_reverts_to_the_prior(small_model):
     np.testing.assert_allclose(batched, mean[:4], rtol=1e-10)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_fitting_walk_and_jog(walk_jog):
     """The 2-D latent space separates walk from jog; the back-constrained model keeps
     consecutive frames close; its reconstruction of held-out frames beats PCA in mm."""
@@ -205,6 +207,7 @@ def test_bad_training_data():
         make_gpdm([Y[None]], 2)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
     from jaxtrack.manifold import ModelFileError, load_model, save_model
 
@@ -359,6 +362,7 @@ def test_cmu_walk_and_jog_manifold(shared_data):
     assert gp_mm < pca_mm
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
 
@@ -407,6 +411,7 @@ def _check_direct_construction(GPLVM, rbf_bias_kernel):
         GPLVM(latent=jnp.zeros((5, 2)), kernel=rbf_bias_kernel(), data=jnp.zeros(5), mean=jnp.zeros(3), scale=jnp.ones(4))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gpdm_objective_is_bounded_along_its_scale_and_constant_entries(walk_jog):
     """001 eq. 11: scaling the pose kernel, its noise and W^2 together by s changes the objective
     only by the bias's own prior, -ln s (the scale's and the precision beta_3 = 1/noise's terms
@@ -429,6 +434,7 @@ def test_gpdm_objective_is_bounded_along_its_scale_and_constant_entries(walk_jog
     np.testing.assert_allclose(float(still.objective()), base, rtol=1e-12)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_fit_takes_exactly_the_steps_asked_and_never_returns_nans():
     """``--steps 30`` used to run 50 (a whole chunk); an objective that turns NaN part-way
     leaves the parameters of the last finite step."""
@@ -458,6 +464,7 @@ def test_fit_takes_exactly_the_steps_asked_and_never_returns_nans():
         fit_model(Cliff(jnp.zeros(1)), max_steps=0)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gpdm_gle_start_keeps_the_mirror_half_cycles_apart():
     """A cycle whose strongest directions, once standardised, are a half-cycle feature (cos 2 phi,
     three entries) and the stride (sin phi, two): PCA's 2-D start puts phase phi on phase

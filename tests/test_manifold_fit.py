@@ -35,6 +35,7 @@ def _float64():
         yield
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_log_marginal_rule_equals_autodiff_through_the_cholesky_in_both_modes(getkey):
     n, d = 9, 4
     K, Y = _spd(getkey(), n), jax.random.normal(getkey(), (n, d), jnp.float64)
@@ -54,6 +55,7 @@ def test_log_marginal_rule_equals_autodiff_through_the_cholesky_in_both_modes(ge
         np.testing.assert_allclose(hvps[0], hvps[1], rtol=1e-8, atol=1e-10)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize(("n", "block"), [(6, 128), (37, 8), (300, 128), (301, 64)])
 def test_cholesky_inverse_equals_the_inverse_at_every_depth_of_its_recursion(getkey, n, block):
     K = _spd(getkey(), n)
@@ -65,6 +67,7 @@ def test_cholesky_inverse_equals_the_inverse_at_every_depth_of_its_recursion(get
                                rtol=1e-12, atol=1e-12 * np.abs(reference).max())
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_log_marginal_rule_holds_where_the_inverse_recurses(getkey):
     n, d = 300, 3  # beyond one block of ``cholesky_inverse``
     K, Y = _spd(getkey(), n), jax.random.normal(getkey(), (n, d), jnp.float64)
@@ -74,6 +77,7 @@ def test_log_marginal_rule_holds_where_the_inverse_recurses(getkey):
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10 * np.abs(np.asarray(b)).max())
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_safe_cholesky_differentiates_like_jax_cholesky_and_survives_a_singular_matrix(getkey):
     K = _spd(getkey(), 7)
     dK = jax.random.normal(getkey(), (7, 7), jnp.float64)
@@ -99,6 +103,7 @@ def _small_gplvm(frames=30):
     return make_gplvm(np.asarray(Y), 2)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_jitted_fit_takes_the_same_steps_as_a_python_loop_of_optax_lbfgs():
     """``optimiser="optax"`` against optax L-BFGS steps driven from Python. Same start, same steps."""
     model = _small_gplvm()
@@ -199,6 +204,7 @@ class _KernelOnly(eqx.Module):
         return eqx.tree_at(lambda m: m.model.kernel, spec, jax.tree.map(lambda _: True, self.model.kernel))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 @pytest.mark.parametrize("optimiser", ["lbfgs", "optax"])
 def test_converged_fit_reaches_the_optimum_scipy_reaches(optimiser):
     """Run to convergence from the same start, the jitted fit (either optimiser) and SciPy's

@@ -54,6 +54,7 @@ def test_bound_equals_dense_numpy(walk_angles, getkey, approximation):
     assert float(value) == pytest.approx(expected, rel=1e-9)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_bound_is_exact_with_all_points_and_below_otherwise(walk_angles):
     Y = walk_angles[:20]
     full = make_gplvm(Y, 2)
@@ -70,6 +71,7 @@ def test_bound_is_exact_with_all_points_and_below_otherwise(walk_angles):
     np.testing.assert_allclose(v1, v2, atol=1e-5)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_sparse_and_mlp_gradients_match_finite_differences(walk_angles, getkey):
     Y = walk_angles[:30]
     models = (make_sparse_gplvm(Y, 2, num_inducing=8), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, key=getkey()))
@@ -112,6 +114,7 @@ def test_mlp_back_constraint_starts_at_pca_and_fits(walk_angles, getkey):
         make_sparse_gplvm(Y, 2, num_inducing=61)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_save_load_sparse_and_mlp(walk_angles, getkey, tmp_path):
     Y = walk_angles[:30]
     models = (

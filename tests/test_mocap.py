@@ -211,6 +211,7 @@ def test_resample():
     np.testing.assert_allclose(out[:, 1], 2 * np.arange(6) * 2.4)  # 0.1 s at 50 Hz: 6 frames
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_ik_round_trip_recovers_the_pose():
     motion = generate_motion("walk", "S2", num_frames=40, fps=30.0, key=jax.random.key(0), dtype=jnp.float64)
     result = inverse_kinematics(motion.joints3d, key=jax.random.key(1))
@@ -230,6 +231,7 @@ def test_ik_round_trip_recovers_the_pose():
     assert float(result.skeleton.limit_violation(result.pose).max()) == 0.0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_ik_fits_in_float64_whether_or_not_x64_is_on():
     # The Gauss-Newton tolerances need float64: the fit runs in it and returns the dtype asked for.
     motion = generate_motion("jog", "S1", num_frames=12, fps=60.0, key=jax.random.key(0), dtype=jnp.float64)
@@ -291,6 +293,7 @@ def _check_ik(joints, key):
     return residual
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_cmu_walk_and_jog(shared_data):
     cmu = os.path.join(shared_data, "cmu35")
     motion = load_asf_amc(os.path.join(cmu, "35.asf"), os.path.join(cmu, "35_01.amc"), fps=120.0)
@@ -317,6 +320,7 @@ def test_cmu_walk_and_jog(shared_data):
     print(f"CMU IK residual: walk {walk_residual:.1f} mm, jog {jog_residual:.1f} mm")
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_bandai_walk_and_run(shared_data):
     folder = os.path.join(shared_data, "bandai_walk_run")
     walk = load_bvh(os.path.join(folder, "dataset-2_walk_normal_001.bvh"))
@@ -332,6 +336,7 @@ def test_bandai_walk_and_run(shared_data):
     print(f"Bandai IK residual: walk {residuals[0]:.1f} mm, run {residuals[1]:.1f} mm")
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_bandai_run_first_frame_is_upright_without_x64(shared_data):
     # In float32 this take's first frame landed at a pelvis pitch of 0.81 rad (the spine bent back
     # to match, 8.6 mm from the joints) and the next frame jumped 0.7 rad out of it.
@@ -346,6 +351,7 @@ def test_bandai_run_first_frame_is_upright_without_x64(shared_data):
     assert float(result.residual_mm.mean()) < 5.0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_convert_cli_on_real_amc(shared_data, tmp_path):
     cmu = os.path.join(shared_data, "cmu35")
     out = tmp_path / "35_01.npz"

@@ -92,6 +92,7 @@ def test_velocity_moves_particles_round_the_circle(getkey):
         StateVelocity(PoseRandomWalk(jnp.zeros(8)), jnp.zeros(4), jnp.zeros(4))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_velocity_belief_is_a_kalman_filter_of_the_steps(getkey):
     """Each particle's velocity belief after a path of chosen positions equals a scalar Kalman
     filter, written out in NumPy, of the path's heading-frame steps; the draws have its spread
@@ -126,6 +127,7 @@ def test_velocity_belief_is_a_kalman_filter_of_the_steps(getkey):
     np.testing.assert_allclose(np.asarray(moved[:, :8] - drawn[:, :8]).std(0), 0.15, rtol=0.03)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_velocity_log_transition_is_the_proposal_density(getkey):
     """The drawn velocity and the inner step are independent Gaussians: ``log_transition``
     matches the density of what ``propose`` drew, computed by hand."""
@@ -142,6 +144,7 @@ def test_velocity_log_transition_is_the_proposal_density(getkey):
     assert scales.shape == drawn.shape[1:] and np.all(scales[8:14] > 0) and np.all(scales[14:] == 0)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_velocity_that_may_restart_from_rest(getkey):
     """With ``rest_probability`` p a particle draws its velocity from ``N(0, acceleration^2)``
     with probability p, else from its belief: 40000 draws have the mixture's moments and mass
@@ -225,6 +228,7 @@ def test_gpdm_latent_dynamics_predict_as_the_dynamics_gp(gpdm_prior):
     assert isinstance(fit_latent_dynamics(no_dynamics, poses), LatentRandomWalk)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gpdm_particles_follow_the_predictive_distribution(gpdm_prior, walk, getkey):
     dynamics = fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
     start = dynamics.init(getkey(), jnp.asarray(walk[10]), 40000)
@@ -236,6 +240,7 @@ def test_gpdm_particles_follow_the_predictive_distribution(gpdm_prior, walk, get
     np.testing.assert_allclose(np.asarray(drawn[:, :6]).std(0), dynamics.s_global, rtol=0.02)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gpdm_gpapf_with_one_layer_and_beta_one_is_latent_sir(gpdm_prior, walk, getkey):
     """An annealed filter with one layer at beta = 1 is the SIR filter of the same dynamics:
     with the same key, the same particles, weights and estimates."""
@@ -258,6 +263,7 @@ def test_gpdm_gpapf_with_one_layer_and_beta_one_is_latent_sir(gpdm_prior, walk, 
     np.testing.assert_allclose(info_apf.log_evidence, info_sir.log_evidence, rtol=1e-12)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_mrpf_on_a_gpdm_draws_its_latent_points_from_the_gpdm_dynamics(gpdm_prior, walk, getkey):
     """MRPF's GPDM latent proposal: z_t ~ N(mu_X(z_{t-1}), sigma_X^2 I) from the particle's own
     latent point (001 eqs. 7-9), then eq. 28; log_transition is the density it draws from."""
@@ -324,6 +330,7 @@ def test_refinement_keeps_the_new_transitions_invariant(gpdm_prior, walk, getkey
         check_refinement_keeps_transition(dynamics, jnp.asarray(walk[40]), getkey)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_gpdm_trackers_start_at_the_projection_of_the_first_pose(gpdm_prior, walk):
     """Every dynamics on a GPDM starts its particles at the latent point ``encode`` gives, the
     projection onto the mean surface: for another subject's pose the decoded start is no farther
@@ -379,6 +386,7 @@ def test_em_recovers_a_known_scale_mixture(dims):
         LatentNoiseMixture(core=jnp.asarray(2.0), jump=jnp.asarray(1.0), jump_probability=jnp.asarray(0.1))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_mixture_draws_follow_its_density(gpdm_prior, walk, getkey):
     """GPDM latent dynamics with a mixture noise: the normalised squared steps of 40000 draws
     follow the mixture of scaled chi^2 (Kolmogorov-Smirnov), and ``log_transition`` is the
@@ -430,6 +438,7 @@ def test_gpdm_noise_is_the_gpdms_own_draw(gpdm_prior, walk, getkey):
     assert float(gpdm_noise().jump) == 1.0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_noise_fitted_on_validation_motion(gpdm_prior, walk, getkey):
     """``latent_noise="validation"`` fits a valid mixture on the validation poses' projected
     steps, for the GPDM's latent dynamics and MRPF's GPDM proposal alike."""
@@ -463,6 +472,7 @@ def test_refinement_keeps_the_mixture_transition_invariant(gpdm_prior, walk, get
     check_refinement_keeps_transition(dynamics, jnp.asarray(walk[40]), getkey)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_mixture_same_key_same_result_jitted_or_not(gpdm_prior, walk, getkey):
     dynamics = GPDMLatentDynamics(gpdm_prior, jnp.full(6, 0.01), noise=MIXTURE)
     start = dynamics.init(getkey(), jnp.asarray(walk[10]), 64)

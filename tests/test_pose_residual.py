@@ -21,6 +21,7 @@ def gpdm(walk, gpdm_prior):
     return fit_gpdm_latent_dynamics(gpdm_prior, walk[45:])
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_starts_at_the_given_pose_not_at_its_projection(gpdm, walk, getkey):
     residual = fit_pose_residual(gpdm, walk[45:], 1.0)
     pose = jnp.asarray(walk[10]).at[10].add(0.3)  # off the manifold
@@ -31,6 +32,7 @@ def test_starts_at_the_given_pose_not_at_its_projection(gpdm, walk, getkey):
         np.testing.assert_allclose(dynamics.to_pose(states), np.broadcast_to(pose, (5, 32)), atol=1e-12)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_draws_the_inner_transition_and_a_gaussian_walk_of_the_angles(gpdm, walk, getkey):
     """The inner part is the inner dynamics' draw bit for bit (from the first half of the key),
     the residual moves by N(0, scales^2), and ``log_transition`` is the sum of both densities."""
@@ -79,6 +81,7 @@ def test_fit_and_bad_input(gpdm, walk):
     assert ExperimentConfig(methods=("latentpf",)).residual_of("latentpf") == 0.0  # off by default
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_a_latent_tracker_with_a_residual_reaches_a_pose_off_its_manifold(gpdm, walk, getkey):
     """The truth is the manifold's pose with one knee bent 0.25 rad further: LatentPF on the
     manifold alone stays about 0.25 rad off in that angle; with the residual most of the offset

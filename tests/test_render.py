@@ -51,6 +51,7 @@ def test_capsule_outline_is_half_occupied():
     assert 0.5 < float(capsule_union(sub, jnp.asarray(points[:1, 0]), jnp.asarray(points[:1, 1]), 2 * float(r))[0, 0]) < 1.0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_soft_render_gradients(setup, getkey):
     body, rig, pose = setup
     direction = jax.random.normal(getkey(), pose.shape) * 0.1
@@ -78,6 +79,7 @@ def test_soft_render_gradients(setup, getkey):
     )
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_render_jit_and_vmap(setup, getkey):
     body, rig, pose = setup
     poses = pose + 0.05 * jax.random.normal(getkey(), (3,) + pose.shape)

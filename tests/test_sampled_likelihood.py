@@ -98,6 +98,7 @@ def test_the_sampled_sums_are_unbiased_for_a_pose(scene, getkey):
         assert np.all(np.abs(mean - np.asarray(exact)) < 4 * sd + 1e-9), (mean, exact, sd)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_sampled_likelihood_ranks_poses_like_every_pixel(scene, getkey):
     """Around the truth the sampled cost follows the dense one (64x48, 4 views, 1024 samples
     per view): a shift shared by every pose (one draw's luck, which the weights ignore) and a
@@ -114,6 +115,7 @@ def test_sampled_likelihood_ranks_poses_like_every_pixel(scene, getkey):
     assert np.corrcoef(estimate, exact)[0, 1] > 0.99
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_sampling_is_keyed_and_equal_jitted_or_not(scene):
     _, _, observations = scene
     key = jax.random.key(4)

@@ -74,6 +74,7 @@ def run_on_two_devices(code: str):
     assert done.returncode == 0 and done.stdout.strip().endswith("ok"), done.stderr[-3000:]
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_sharded_particles_give_the_unsharded_result_on_two_devices():
     run_on_two_devices(LINEAR_GAUSSIAN)
 

@@ -38,6 +38,7 @@ def other_subject_scene():
     return motion, scene, scene.replace(**dict.fromkeys(JOINT_KEYS))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_joints_only_file_gets_the_skeleton_inverse_kinematics_fits(other_subject_scene):
     _motion, full, joints_only = other_subject_scene
     resolved = subject_body(joints_only, "x.npz", key=jax.random.key(0))
@@ -64,6 +65,7 @@ def test_joints_only_file_gets_the_skeleton_inverse_kinematics_fits(other_subjec
     assert subject_body(full, "full.npz", key=jax.random.key(0)).source == "file"
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_a_skeleton_that_contradicts_its_joints_is_refused(other_subject_scene):
     _motion, full, _joints_only = other_subject_scene
     offsets = np.asarray(full.skeleton_offsets).copy()
@@ -74,6 +76,7 @@ def test_a_skeleton_that_contradicts_its_joints_is_refused(other_subject_scene):
     assert subject_body(bad, "bad.npz", key=jax.random.key(0), choice="joints").source == "fitted to joints"
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_a_file_without_joints_borrows_its_subjects_body(other_subject_scene):
     _motion, full, joints_only = other_subject_scene
     donor = subject_body(joints_only, "train.npz", key=jax.random.key(0))
@@ -93,6 +96,7 @@ def test_the_subject_key_round_trips_and_is_checked(tmp_path, other_subject_scen
         Sequence.create(fps=30.0, subject=np.array(["a", "b"]))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_unreachable_joints_are_flagged(other_subject_scene):
     _, _, joints_only = other_subject_scene
     joints = np.asarray(joints_only.joints3d).copy()
@@ -102,6 +106,7 @@ def test_unreachable_joints_are_flagged(other_subject_scene):
     assert resolved.summary()["unreachable_joints"]
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_solid_body_is_another_renderer():
     motion = generate_motion("walk", "S1", num_frames=2, fps=30.0, key=jax.random.key(0))
     rig = default_rig(64, 48)
@@ -131,7 +136,7 @@ def test_image_size_rule_for_sampled_pixels():
 def test_prepare_test_says_what_it_chose(other_subject_scene, capsys):
     _, full, _ = other_subject_scene
     scene = prepare_test(full, "x.npz", key=jax.random.key(0), pixel_samples="auto", say=print)
-    assert scene.pixel_samples is None and "40x30 images: the likelihood scores every pixel" in capsys.readouterr().out
+    assert scene.pixel_samples is None and "40x30 images: the silhouette likelihood scores every pixel" in capsys.readouterr().out
 
 
 def test_gle_with_one_repetition_falls_back_to_its_temporal_graph():
@@ -145,6 +150,7 @@ def test_gle_with_one_repetition_falls_back_to_its_temporal_graph():
     np.testing.assert_allclose(np.abs(np.asarray(model.latent)), np.abs(np.asarray(temporal.latent)), atol=1e-6)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_an_impossible_method_is_refused_alone(tmp_path):
     train, validation, test = small_experiment_sequences()
     one_frame = [s.cropped(1) for s in train]  # a GPDM needs two frames per sequence; SIR needs no manifold

@@ -93,6 +93,7 @@ def test_builtin_trackers_are_registered():
         Budget(0)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_a_tracker_defined_here_runs_through_the_experiment_api(damped_registered, sequences, tmp_path):
     train, validation, test = sequences
     assert "test-damped" in available_trackers()

@@ -1,4 +1,4 @@
-"""Forward kinematics: pose vectors -> 3-D joint positions (../shared/METHODS.md section 1)."""
+"""Forward kinematics: pose vectors -> 3-D joint positions (docs/papers.md)."""
 
 from __future__ import annotations
 

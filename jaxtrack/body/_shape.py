@@ -1,4 +1,4 @@
-"""Body shape: one capsule per limb with per-part radii (../shared/METHODS.md section 1)."""
+"""Body shape: one capsule per limb with per-part radii (docs/papers.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Kinematic tree, pose-vector layout and joint limits (../shared/METHODS.md section 1).
+"""Kinematic tree, pose-vector layout and joint limits (docs/papers.md).
 
 Convention. World frame: metres, Z up. Body frame at rest: x forward, y to the body's left,
 z up; the rest pose stands upright with the arms hanging down. Each joint ``j`` owns the

@@ -1,5 +1,5 @@
 """Second-order autoregressive (constant-velocity) pose dynamics (003 sec. 5.2's AR(2) baseline;
-../shared/METHODS.md section 2, "baseline dynamics").
+docs/papers.md).
 
 Per pose entry, ``x_t = x_{t-1} + a (x_{t-1} - x_{t-2}) + N(0, s^2)``: the previous step,
 damped by ``a`` in [0, 1], plus noise. The particle state is ``[x_t, x_{t-1}]`` (2D numbers), so

@@ -49,8 +49,10 @@ REST_PROBABILITY = 0.25
 YAW = 3  # the root yaw's entry in a pose (and in every built-in state)
 
 
-def heading_to_world(velocity: Float[Array, "n 6"], yaw: Float[Array, " n"]) -> Float[Array, "n 6"]:
-    """Steps of the global entries (x, y, z, yaw, pitch, roll) from heading-frame velocities."""
+def heading_to_world(velocity: Float[Array, "n k"], yaw: Float[Array, " n"]) -> Float[Array, "n k"]:
+    """Steps of the K >= 2 tracked entries from heading-frame velocities: the horizontal root
+    (x, y) rotated by the yaw, the rest (z, yaw, pitch, roll and any pose entries MRPF tracks
+    on a BC-GPLVM) as they are."""
     cos, sin = jnp.cos(yaw), jnp.sin(yaw)
     forward, left = velocity[:, 0], velocity[:, 1]
     horizontal = jnp.stack([cos * forward - sin * left, sin * forward + cos * left], axis=1)

@@ -1,4 +1,4 @@
-"""Tracking error in millimetres (paper 000 eq. 31; ../shared/METHODS.md section 4)."""
+"""Tracking error in millimetres (paper 000 eq. 31; docs/papers.md)."""
 
 from __future__ import annotations
 

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from ..body import check_height
 from ..errors import ConfigurationError
-from ..manifold import OPTIMISERS
-from ..tracking import BODY_CHOICES, GRADIENT_COST, MANIFOLD_KINDS, PAPER_TRACKERS, Budget, get_tracker
+from ..likelihood import DEFAULT_LIKELIHOOD, get_likelihood
+from ..manifold import DEFAULT_OPTIMISER, OPTIMISERS, manifold_kinds
+from ..tracking import BODY_CHOICES, GRADIENT_COST, PAPER_TRACKERS, Budget, get_tracker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -25,17 +28,17 @@ class ExperimentConfig:
             fewer dispatches; frames/s is then the batch's frames over its time, compile included.
         latent_dim: dimension of every manifold's latent space (None: each tracker's own,
             ``TrackerRecipe.latent_dim``: MRPF 2, GPAPF and LatentPF 3; else the kind's,
-            ``tracking.DEFAULT_LATENT_DIMS``: 2 for the GP models, 3 for the spectral ones).
+            ``ManifoldKind.latent_dim``: 2 for the GP models, 3 for the spectral ones).
             One manifold is fitted per (kind, latent dimension) the trackers need.
         fit_steps: L-BFGS iterations for the manifold.
-        fit_optimiser: the manifold fit's L-BFGS (``jaxtrack.manifold.fit_model``): "optax"
-            (default: optax's, zoom line search; every tracking table of docs/trackers.md was measured
-            with it) or "lbfgs" (one evaluation per loop iteration: compiles in about half the
-            time; the default once those tables are measured again with it)
+        fit_optimiser: the manifold fit's L-BFGS (``jaxtrack.manifold.fit_model``): "lbfgs"
+            (``manifold.DEFAULT_OPTIMISER``, as ``jaxtrack fit``: one evaluation per loop
+            iteration, compiles in about half the time) or "optax" (optax's, zoom line search:
+            the tracking tables of docs/trackers.md measured before 2026-11-26).
         likelihood_scale: temperature of the silhouette likelihood, ``ln p = -scale * cost``.
         frames: track only the first ``frames`` frames of each test sequence (None: all).
-        seed: base PRNG seed; tracker ``i`` of the registry runs with keys folded from
-            ``fold_in(key(seed), i)``.
+        seed: base PRNG seed; the tracker named ``m`` runs with keys folded from
+            ``fold_in(key(seed), tracking.tracker_stream(m))`` (a hash of its name).
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
         ground_prior: multiply every tracker's likelihood by the ground plane's prior, the feet
@@ -66,8 +69,12 @@ class ExperimentConfig:
             BC-GPLVM) or the latent point (latent random walk), fitted on the validation motion
             (``jaxtrack.dynamics.StateVelocity``); False: none does; None: each tracker's own
             (``TrackerRecipe.velocity``: MRPF and LatentPF).
-        manifold: the manifold every manifold tracker runs on (one of ``MANIFOLD_KINDS``), or None
+        manifold: the manifold every manifold tracker of its family runs on (a registered kind,
+            ``manifold.manifold_kinds(trackable=True)``), or None
             for each tracker's own (``TrackerRecipe.manifold``: the one its paper uses).
+        likelihood: the registered likelihood every test scene is tracked with
+            (``likelihood.available_likelihoods()``; default the silhouettes' of 000 eq. 12).
+        likelihood_options: that likelihood's options (``LikelihoodRecipe.options``).
         residual: the scale of the off-manifold pose residual of every tracker whose pose is
             decoded from a latent point (``jaxtrack.dynamics.PoseResidual``; 0: none), relative
             to the pose random walk's steps; None: each tracker's own (``TrackerRecipe.residual``).
@@ -80,7 +87,7 @@ class ExperimentConfig:
     batch_runs: bool = False
     latent_dim: int | None = None
     fit_steps: int = 300
-    fit_optimiser: str = "optax"
+    fit_optimiser: str = DEFAULT_OPTIMISER
     likelihood_scale: float = 100.0
     frames: int | None = None
     seed: int = 0
@@ -95,6 +102,8 @@ class ExperimentConfig:
     velocity: bool | None = None
     manifold: str | None = None
     residual: float | None = None
+    likelihood: str = DEFAULT_LIKELIHOOD
+    likelihood_options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
         if not self.methods:
@@ -128,13 +137,28 @@ class ExperimentConfig:
         if self.residual is not None and (isinstance(self.residual, bool) or not isinstance(self.residual, (int, float))
                                           or not (math.isfinite(self.residual) and self.residual >= 0)):
             raise ConfigurationError(f"residual must be a scale >= 0 or None (each tracker's own), got {self.residual!r}")
-        if self.manifold is not None and self.manifold not in MANIFOLD_KINDS:
-            raise ConfigurationError(f"manifold must be one of {MANIFOLD_KINDS} or None (each tracker's own), got {self.manifold!r}")
+        if self.manifold is not None and self.manifold not in manifold_kinds(trackable=True):
+            raise ConfigurationError(f"manifold must be one of {manifold_kinds(trackable=True)} or None (each tracker's own), "
+                                     f"got {self.manifold!r}")
+        try:
+            recipe = get_likelihood(self.likelihood)
+        except ValueError as err:
+            raise ConfigurationError(str(err)) from None
+        unknown = sorted(set(self.likelihood_options) - set(recipe.options))
+        if unknown:
+            raise ConfigurationError(f"likelihood {self.likelihood!r} takes no option {', '.join(map(repr, unknown))} "
+                                     f"(it takes: {', '.join(recipe.options) or 'none'})")
         budget = self.tracking_budget
         for recipe in recipes:
             recipe.check_budget(budget)
             if recipe.needs_manifold:
                 recipe.manifold_for(self.manifold)
+
+    def as_dict(self) -> dict:
+        """The settings as plain JSON values (results.json's "config")."""
+        out = dataclasses.asdict(self)
+        out["likelihood_options"] = dict(self.likelihood_options)
+        return out
 
     @property
     def tracking_budget(self) -> Budget:

@@ -1,4 +1,4 @@
-"""The HumanEva-style experiment of paper 000 sec. 6 (../shared/METHODS.md section 4).
+"""The HumanEva-style experiment of paper 000 sec. 6 (docs/papers.md).
 
 Inputs are sequences: training sequences (poses for the manifold), validation sequences (the
 trackers' dynamics, 000 sec. 5.2), and test sequences with silhouettes and cameras. Every
@@ -37,7 +37,6 @@ from ..tracking import (
     subject_body,
     track,
     track_runs,
-    tracker_index,
     tracker_keys,
 )
 from ._config import ExperimentConfig
@@ -143,7 +142,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         "bodies" (per test sequence, ``TestScene.body_summary``: where its body came from, its limb
         lengths and radii, the calibration, the inverse kinematics' residual per joint),
         "ik_residual_mm" (per file with joints, the residual's mean, max and per-joint figures),
-        "refused" (per method that could not run on these data, the reason: every other method
+        "likelihoods" (per test sequence, the registered likelihood's name, options, class and
+        pixel samples), "refused" (per method that could not run on these data, the reason: every other method
         still runs), "warnings" (files whose skeleton cannot reach their joints)
         and "estimates" (first run's poses and joints).
     """
@@ -175,16 +175,19 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     window = shared_window(test, config.frames, config.resolution)
     scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
                            calibrate=config.calibrate_shape, resolution=config.resolution, pixel_samples=config.pixel_samples,
-                           body=config.body, height=config.height, donors=donors, say=say)
+                           body=config.body, height=config.height, donors=donors, say=say, likelihood=config.likelihood,
+                           likelihood_options=dict(config.likelihood_options))
               for seq, name in zip(test, test_names)]
 
-    results = {"config": dataclasses.asdict(config), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
+    results = {"config": config.as_dict(), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
                "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {},
-               "estimates": {}, "shape_calibration": {}, "ground_prior": {}}
+               "estimates": {}, "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}}
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
         _warn_unreachable(resolved, name, results)
     for scene, name in zip(scenes, test_names):
+        results["likelihoods"][name] = {"name": config.likelihood, "options": dict(config.likelihood_options),
+                                        "class": type(scene.likelihood).__name__, "pixel_samples": scene.pixel_samples}
         results["bodies"][name] = scene.body_summary()
         results["ik_residual_mm"][name] = results["bodies"][name].get("ik_residual_mm")
         _warn_unreachable(scene.subject, name, results)
@@ -218,7 +221,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 model, fit_info, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind, progress=progress,
-                                                       optimiser=config.fit_optimiser)
+                                                       optimiser=config.fit_optimiser, key=jax.random.key(config.seed))
         except (ValueError, np.linalg.LinAlgError) as err:
             for method in users:
                 refuse(method, f"its {kind} manifold ({latent_dim}-D) could not be fitted: {err}")
@@ -227,7 +230,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         for note in notes:
             print(f"warning: {manifold_label(kind, latent_dim)}: {note}")
         fit_s = time.perf_counter() - start
-        say(f"manifold: {type(model).__name__} on {sum(map(len, train_poses))} training frames, latent dim {model.latent_dim}, "
+        say(f"manifold: {type(model).__name__} on {int(model.data.shape[0])} training frames, latent dim {model.latent_dim}, "
             f"objective {fit_info.objective:.6g} after {fit_info.steps} steps ({fit_s:.1f} s)")
         results["manifolds"][manifold_label(kind, latent_dim)] = {
             "kind": kind, "class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
@@ -239,7 +242,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     for method in config.methods:
         if method in results["refused"]:
             continue
-        fit_key, run_roots[method] = tracker_keys(config.seed, tracker_index(method))
+        fit_key, run_roots[method] = tracker_keys(config.seed, method)
         try:
             fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
         except (ValueError, np.linalg.LinAlgError) as err:

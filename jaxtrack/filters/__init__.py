@@ -2,7 +2,7 @@
 and ``APF`` (annealed layers, optional final full-pose layer), optionally with gradient-refined
 particles (``LangevinRefinement``), each with any dynamics and
 likelihood; the papers' trackers as presets; resamplers, weights, estimators and the one jitted
-runner (../shared/METHODS.md section 2)."""
+runner (docs/papers.md)."""
 
 from ._annealing import choose_beta as choose_beta
 from ._annealing import survival_rate as survival_rate

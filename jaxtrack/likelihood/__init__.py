@@ -1,7 +1,8 @@
 """Observation likelihoods behind one interface (``AbstractLikelihood``): the bidirectional
 silhouette likelihood of paper 000 eq. 12 (dense, windowed, on sampled pixels, or at a coarser
 resolution), sums of likelihoods, plain functions, and the ground plane as a pose prior that
-multiplies any of them."""
+multiplies any of them. ``LikelihoodRecipe`` and its registry name the likelihoods a test scene
+can be tracked with (``available_likelihoods()``)."""
 
 from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
@@ -19,6 +20,13 @@ from ._coarse import coarsen_likelihood as coarsen_likelihood
 from ._ground import GroundPlanePrior as GroundPlanePrior
 from ._ground import ground_clearance as ground_clearance
 from ._ground import make_ground_prior as make_ground_prior
+from ._registry import DEFAULT_LIKELIHOOD as DEFAULT_LIKELIHOOD
+from ._registry import LikelihoodRecipe as LikelihoodRecipe
+from ._registry import SceneInputs as SceneInputs
+from ._registry import available_likelihoods as available_likelihoods
+from ._registry import get_likelihood as get_likelihood
+from ._registry import register_likelihood as register_likelihood
+from ._registry import unregister_likelihood as unregister_likelihood
 from ._sampled import PixelSample as PixelSample
 from ._sampled import SampledSilhouetteLikelihood as SampledSilhouetteLikelihood
 from ._sampled import default_band as default_band

@@ -1,4 +1,4 @@
-"""Bidirectional silhouette likelihood (paper 000 eq. 12; ../shared/METHODS.md section 1).
+"""Bidirectional silhouette likelihood (paper 000 eq. 12; docs/papers.md).
 
 With the observed silhouette ``S`` (binary, from background subtraction) and the soft model
 silhouette ``S(x)`` in [0, 1], per view:

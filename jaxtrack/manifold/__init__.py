@@ -1,9 +1,10 @@
 """Pose manifolds behind one interface (``AbstractManifold``): GPLVM, back-constrained GPLVM
 (kernel or MLP), sparse GPLVM, GPDM and back-constrained GPDM, a PCA baseline, and ``ManifoldPrior``, a fitted
-manifold precomputed for the trackers (../shared/METHODS.md section 3). The Laplacian Eigenmaps
+manifold precomputed for the trackers (docs/papers.md). The Laplacian Eigenmaps
 family's graphs and embedding (LE, temporal LE, GLE with its DTW kernel; paper 002), its RBF
 networks, and ``SpectralEmbedding`` (``fit_spectral``: LE, temporal LE or GLE with its RBF
-networks, fitted in closed form), the manifold GLE-GbPF walks on."""
+networks, fitted in closed form), the manifold GLE-GbPF walks on. ``ManifoldKind`` and its
+registry name every kind that can be fitted (``manifold_kinds()``)."""
 
 from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
@@ -21,6 +22,7 @@ from ._eigenmaps import laplacian_embedding as laplacian_embedding
 from ._eigenmaps import stylistic_graph as stylistic_graph
 from ._eigenmaps import stylistic_neighbours as stylistic_neighbours
 from ._eigenmaps import temporal_graph as temporal_graph
+from ._fit import DEFAULT_OPTIMISER as DEFAULT_OPTIMISER
 from ._fit import OPTIMISERS as OPTIMISERS
 from ._fit import FitInfo as FitInfo
 from ._fit import fit_model as fit_model
@@ -31,6 +33,12 @@ from ._kernels import cholesky_inverse as cholesky_inverse
 from ._kernels import gaussian_log_marginal as gaussian_log_marginal
 from ._kernels import rbf_bias_kernel as rbf_bias_kernel
 from ._kernels import safe_cholesky as safe_cholesky
+from ._kinds import FAMILIES as FAMILIES
+from ._kinds import ManifoldKind as ManifoldKind
+from ._kinds import get_manifold_kind as get_manifold_kind
+from ._kinds import manifold_kinds as manifold_kinds
+from ._kinds import register_manifold_kind as register_manifold_kind
+from ._kinds import unregister_manifold_kind as unregister_manifold_kind
 from ._lbfgs import LBFGS_MEMORY as LBFGS_MEMORY
 from ._lbfgs import lbfgs_minimise as lbfgs_minimise
 from ._models import BCGPLVM as BCGPLVM

@@ -1,4 +1,4 @@
-"""The Laplacian Eigenmaps family (002 sec. 2.1; ../shared/METHODS.md section 3): the graphs of
+"""The Laplacian Eigenmaps family (002 sec. 2.1; docs/papers.md): the graphs of
 LE (k nearest neighbours in pose space), temporal LE (the t previous and next frames) and GLE
 (temporal plus ``alpha`` times stylistic neighbours found by sliding DTW), and the embedding
 that minimises ``sum_ij W_ij ||z_i - z_j||^2`` subject to ``Z^T D Z = I`` (002 eqs. 1 and 7):

@@ -22,6 +22,10 @@ from jax.flatten_util import ravel_pytree
 from ._lbfgs import LBFGS_MEMORY, lbfgs_minimise
 
 OPTIMISERS = ("lbfgs", "optax")
+# The one default of every fit (``fit_model``, ``tracking.fit_manifold``, ``jaxtrack fit``,
+# ``jaxtrack experiment`` and the demo). The tracking tables of docs/trackers.md before
+# 2026-11-26 were measured with "optax" (``--fit-optimiser optax`` reproduces them).
+DEFAULT_OPTIMISER = "lbfgs"
 
 
 class FitInfo(NamedTuple):
@@ -140,7 +144,7 @@ def _lbfgs_loop(params, static, max_steps, tolerance, target, check_every, fit_i
 
 
 def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: float | None = None, progress: bool = False,
-              report_every: int = 50, blas_threads: int | None = 1, chunk: int | None = None, optimiser: str = "lbfgs",
+              report_every: int = 50, blas_threads: int | None = 1, chunk: int | None = None, optimiser: str = DEFAULT_OPTIMISER,
               memory: int = LBFGS_MEMORY):
     """Maximise ``model.objective()`` over the leaves ``model.trainable()`` marks.
 
@@ -158,9 +162,10 @@ def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: f
             oversubscribes the cores: on 2 cores one BLAS thread made an N = 350 GP-LVM
             gradient 2.6x faster and an N = 1000 one 1.5x.
         chunk: the former name of ``report_every`` (the steps between checks).
-        optimiser: "lbfgs" (one objective evaluation per loop iteration, ``_lbfgs``; compiles
-            in about half the time) or "optax" (optax's L-BFGS with its zoom line search and
-            10 pairs, the fit the tracking tables of docs/trackers.md were measured with).
+        optimiser: "lbfgs" (``DEFAULT_OPTIMISER``: one objective evaluation per loop iteration,
+            ``_lbfgs``; compiles in about half the time) or "optax" (optax's L-BFGS with its
+            zoom line search and 10 pairs, the fit the older tracking tables of docs/trackers.md
+            were measured with).
         memory: curvature pairs of "lbfgs" (default 100).
 
     Returns:

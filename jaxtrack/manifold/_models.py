@@ -1,5 +1,5 @@
 """Pose manifolds: PCA, GPLVM, back-constrained GPLVM and GPDM, each an equinox Module with a
-pure objective differentiated by autodiff (../shared/METHODS.md section 3).
+pure objective differentiated by autodiff (docs/papers.md).
 
 - GPLVM (000 eqs. 13-16): maximise ``ln p(Y|Z) - 1/2 ||Z||_F^2`` over latent points Z and the
   kernel hyperparameters.

@@ -1,7 +1,7 @@
-"""The Laplacian Eigenmaps family as a pose manifold (002 sec. 2.1; ../shared/METHODS.md
-section 3): plain LE (k nearest neighbours in pose space), temporal LE (the t previous and next
-frames) and GLE (temporal plus ``alpha`` times stylistic neighbours found by sliding DTW across
-repetitions), each with the RBF networks that map latent points to poses and back (002 eqs. 8-9).
+"""The Laplacian Eigenmaps family as a pose manifold (002 sec. 2.1; docs/papers.md): plain LE (k
+nearest neighbours in pose space), temporal LE (the t previous and next frames) and GLE
+(temporal plus ``alpha`` times stylistic neighbours found by sliding DTW across repetitions),
+each with the RBF networks that map latent points to poses and back (002 eqs. 8-9).
 
 An embedding is fitted in closed form (a generalised eigenproblem, ``fit_spectral``), not by
 optimising an objective, so ``fit`` returns the model unchanged; ``objective`` is still the

@@ -28,11 +28,8 @@ from ._pipeline import track_runs as track_runs
 from ._pipeline import track_sequence as track_sequence
 from ._pipeline import track_sequences as track_sequences
 from ._pipeline import tracker_keys as tracker_keys
-from ._registry import DEFAULT_LATENT_DIMS as DEFAULT_LATENT_DIMS
-from ._registry import GP_MANIFOLD_KINDS as GP_MANIFOLD_KINDS
+from ._pipeline import tracker_stream as tracker_stream
 from ._registry import GRADIENT_COST as GRADIENT_COST
-from ._registry import MANIFOLD_KINDS as MANIFOLD_KINDS
-from ._registry import SPECTRAL_MANIFOLD_KINDS as SPECTRAL_MANIFOLD_KINDS
 from ._registry import Budget as Budget
 from ._registry import MotionData as MotionData
 from ._registry import TrackerRecipe as TrackerRecipe

@@ -1,6 +1,6 @@
 """The built-in trackers, registered in this order when ``jaxtrack.tracking`` is imported (the
-order fixes each tracker's key stream, ``tracker_index``). Adding a tracker: its recipe module
-in this package, and one line here."""
+order of ``available_trackers()`` and of the tables; each tracker's keys follow its name,
+``tracker_stream``). Adding a tracker: its recipe module in this package, and one line here."""
 
 from . import _apf, _glegbpf, _gpapf, _latentpf, _mrpf, _sir, _velocity
 from ._registry import register_tracker

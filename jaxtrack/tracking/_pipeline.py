@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import zlib
+from collections.abc import Mapping
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -34,21 +37,24 @@ from ..errors import ConfigurationError
 from ..filters import LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import (
+    DEFAULT_LIKELIHOOD,
     BodyCalibration,
     SampledSilhouetteLikelihood,
+    SceneInputs,
+    SilhouetteLikelihood,
     body_of,
     calibrate_body,
     calibrate_shape,
     check_silhouettes,
     default_pixel_samples,
+    get_likelihood,
     ground_clearance,
     make_ground_prior,
-    make_silhouette_likelihood,
     sample_frames,
     with_body,
 )
-from ..manifold import SpectralEmbedding, fit_spectral, make_bc_gpdm, make_bc_gplvm, make_gpdm
-from ._registry import DEFAULT_LATENT_DIMS, MANIFOLD_KINDS, SPECTRAL_MANIFOLD_KINDS, Budget, MotionData, TrackerRecipe
+from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind
+from ._registry import Budget, MotionData, TrackerRecipe
 from ._subject import SubjectBody, limb_lengths_of, subject_body
 
 TRACKING_DTYPE = jnp.float32
@@ -93,36 +99,24 @@ def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
                              "rate and track at it; resample with 'jaxtrack convert --fps'")
 
 
-# How each GP kind is initialised from the training joint-angle sequences (a list of (T_i, A)).
-GP_MANIFOLD_MAKERS = {
-    "bc-gplvm": lambda angles, latent_dim: make_bc_gplvm(np.concatenate(angles), latent_dim),
-    "gpdm": make_gpdm,
-    "bc-gpdm": make_bc_gpdm,
-}
-
-
 def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: int, *, kind: str = "bc-gplvm",
-                 progress: bool = False, optimiser: str = "optax"):
-    """A manifold of the joint angles of the training pose sequences, in float64: a BC-GPLVM
-    (000 eqs. 21-22), a GPDM (001 eqs. 5-11, whose latent dynamics GPAPF follows), a GPDM under
-    000's back-constraint (``manifold.BCGPDM``), or an LE,
-    temporal LE or GLE embedding with its RBF networks (002; closed form, ``steps`` unused).
-    ``latent_dim`` None: the kind's default (``DEFAULT_LATENT_DIMS``); ``optimiser``: the GP
-    models' L-BFGS (``manifold.fit_model``; "optax", the experiment's default, or "lbfgs").
+                 progress: bool = False, optimiser: str = DEFAULT_OPTIMISER, key: PRNGKeyArray | None = None, **options):
+    """A manifold of the joint angles of the training pose sequences (the global DOFs dropped),
+    in float64: the registered manifold ``kind`` (``manifold.get_manifold_kind``: a BC-GPLVM,
+    000 eqs. 21-22; a GPDM, 001 eqs. 5-11; an LE, temporal LE or GLE embedding with its RBF
+    networks, 002, fitted in closed form; or a kind of your own) made with ``options`` and
+    ``key`` (for kinds with random initialisation), then fitted by ``model.fit`` (``steps``
+    L-BFGS iterations with ``optimiser``, ``manifold.fit_model``). ``jaxtrack fit`` and
+    ``jaxtrack experiment`` both fit through this function. ``latent_dim`` None: the kind's own.
 
     Returns:
         ``(model, FitInfo, training_starts)``.
     """
-    if kind not in MANIFOLD_KINDS:
-        raise ValueError(f"manifold kind must be one of {MANIFOLD_KINDS}, got {kind!r}")
-    latent_dim = DEFAULT_LATENT_DIMS[kind] if latent_dim is None else latent_dim
-    angles = [joint_angles(p) for p in train_poses]
+    recipe = get_manifold_kind(kind)
+    angles = [joint_angles(np.asarray(p, np.float64)) for p in train_poses]
     starts = tuple(int(v) for v in np.cumsum([0] + [len(p) for p in train_poses]))
     with jax.enable_x64(True):
-        if kind in SPECTRAL_MANIFOLD_KINDS:
-            model = fit_spectral(angles, kind, latent_dim=latent_dim)
-        else:
-            model = GP_MANIFOLD_MAKERS[kind](angles, latent_dim)
+        model = recipe.build(angles, latent_dim, key=key, **options)
         fitted, info = model.fit(max_steps=steps, progress=progress, optimiser=optimiser)
     return fitted, info, starts
 
@@ -277,10 +271,26 @@ def _start_pose(sequence: Sequence, body_model, pose, key) -> np.ndarray:
     return np.asarray(inverse_kinematics(sequence.joints3d[:1], skeleton=body_model.skeleton, key=key, dtype=jnp.float64).pose[0])
 
 
+def _pixel_samples(requested, likelihood, likelihood_name, width, height, name, say) -> int | None:
+    """The pixels per view and frame the scene's silhouette likelihood scores (None: all)."""
+    sampled = isinstance(likelihood, SilhouetteLikelihood)
+    if requested == "auto":
+        requested = default_pixel_samples(width, height) if sampled else None
+        say(f"{name}: {width}x{height} images: the {likelihood_name} likelihood scores "
+            + ("every pixel of its window" if requested is None else f"{requested} sampled pixels per view and frame")
+            + ("" if sampled else " (pixel sampling applies to the silhouette likelihood only)")
+            + " (--pixel-samples to choose)")
+    if requested and not sampled:
+        raise ValueError(f"--pixel-samples {requested}: the {likelihood_name} likelihood ({type(likelihood).__name__}) "
+                         "does not score sampled pixels; pixel sampling applies to the silhouette likelihood")
+    return requested or None
+
+
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
                  window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None,
                  pixel_samples: int | str | None = None, body: str = "auto", height: float | None = None, donors=(),
-                 calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None) -> TestScene:
+                 calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None,
+                 likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames, all when None).
 
@@ -297,9 +307,12 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     ``pixel_samples`` = n, the likelihood is the ``SampledSilhouetteLikelihood`` on n stratified
     pixels per view and frame (``sample_frames`` with ``fold_in(key, PIXEL_SAMPLE_TAG)``, drawn
     once for the scene, after any calibration) and the observations are the ``PixelSample``;
-    ``"auto"``: by the image size (``likelihood.default_pixel_samples``); None or 0: every pixel.
-    ``say`` (e.g. ``print``) is told what was chosen."""
+    ``"auto"``: by the image size (``likelihood.default_pixel_samples``); None or 0: every pixel
+    (pixel sampling applies to the silhouette likelihood only). ``likelihood`` names the
+    registered likelihood (``likelihood.get_likelihood``; default the silhouettes' of 000 eq.
+    12) built with ``likelihood_options``. ``say`` (e.g. ``print``) is told what was chosen."""
     say = say or (lambda *a, **k: None)
+    recipe = get_likelihood(likelihood)
     check_test_sequence(sequence, name)
     if height is not None:
         check_height(height)
@@ -309,14 +322,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         sequence = sequence.resized(*resolution)
     rig = sequence.rig(dtype=TRACKING_DTYPE)
     width, image_height = (int(v) for v in sequence.image_size[0])
-    if isinstance(pixel_samples, str):
-        if pixel_samples != "auto":
-            raise ValueError(f"pixel_samples must be a whole number, 'auto' or None, got {pixel_samples!r}")
-        pixel_samples = default_pixel_samples(width, image_height)
-        say(f"{name}: {width}x{image_height} images: the likelihood scores "
-            + ("every pixel of its window" if pixel_samples is None else f"{pixel_samples} sampled pixels per view and frame")
-            + " (--pixel-samples to choose)")
-    pixel_samples = pixel_samples or None
+    if isinstance(pixel_samples, str) and pixel_samples != "auto":
+        raise ValueError(f"pixel_samples must be a whole number, 'auto' or None, got {pixel_samples!r}")
     resolved = subject_body(sequence, name, key=key, choice=body, donors=donors, dtype=TRACKING_DTYPE)
     if resolved.poses is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
@@ -326,7 +333,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
     check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
                   f"{name}'s initial pose (frame 0)")
-    likelihood = make_silhouette_likelihood(body_model, rig, scale=likelihood_scale, window=window, silhouettes=observed)
+    likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window),
+                             **dict(likelihood_options or {}))
+    pixel_samples = _pixel_samples(pixel_samples, likelihood, recipe.name, width, image_height, name, say)
     observations = np.moveaxis(observed, 1, 0)
     initial_pose = truth_poses[0]
     calibration = None
@@ -392,18 +401,9 @@ def motion_clearance(sequences, poses, *, floor_height: float = 0.0, skeletons=N
 
 def manifold_problem(kind: str, latent_dim: int, train_poses) -> str | None:
     """Why a ``kind`` manifold of ``latent_dim`` dimensions cannot be fitted on these training
-    pose sequences, or None: the fits' own preconditions, checked before any fitting."""
-    lengths = [len(p) for p in train_poses]
-    total = sum(lengths)
-    if total <= latent_dim + 1:
-        return f"{total} training frames are too few for a {latent_dim}-D latent space (need more than {latent_dim + 1})"
-    if kind in ("gpdm", "bc-gpdm") and min(lengths) < 2:
-        return f"a GPDM's dynamics need two or more frames in every training sequence (one has {min(lengths)})"
-    if kind == "le" and total < 11:
-        return f"the nearest-neighbour graph needs at least 11 training frames, got {total}"
-    if kind in ("tle", "gle") and min(lengths) < 5:
-        return f"the temporal graph needs at least 5 frames in every training sequence (one has {min(lengths)})"
-    return None
+    pose sequences, or None: the kind's own preconditions (``ManifoldKind.problem``), checked
+    before any fitting."""
+    return get_manifold_kind(kind).problem([len(p) for p in train_poses], latent_dim)
 
 
 def method_problems(config, train_poses, validation_poses) -> dict[str, str]:
@@ -500,10 +500,20 @@ def track_sequences(tracker, keys: Key[Array, " sequences"], scenes):
     return poses, np.asarray(joints, np.float64), info
 
 
-def tracker_keys(seed: int, index: int) -> tuple[PRNGKeyArray, PRNGKeyArray]:
-    """``(fit key, run root)`` of the tracker at registry position ``index``: run r uses
+def tracker_stream(name: str) -> int:
+    """The key stream of the tracker named ``name``: a 31-bit hash of the name (CRC-32), so a
+    tracker's keys depend on its name alone, not on its place in the registry or on which other
+    trackers are registered or run."""
+    return zlib.crc32(name.encode("utf-8")) & 0x7FFFFFFF
+
+
+def tracker_keys(seed: int, name: str) -> tuple[PRNGKeyArray, PRNGKeyArray]:
+    """``(fit key, run root)`` of the tracker named ``name`` (``tracker_stream``): run r uses
     ``fold_in(run_root, r)``."""
-    root = jax.random.fold_in(jax.random.key(seed), index)
+    if not isinstance(name, str):
+        raise TypeError(f"tracker_keys takes the tracker's name, got {type(name).__name__} (keys follow the name, not the "
+                        "registry position)")
+    root = jax.random.fold_in(jax.random.key(seed), tracker_stream(name))
     return jax.random.fold_in(root, FIT_KEY_TAG), root
 
 
@@ -525,7 +535,8 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
                    layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
                    calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
                    on_chunk=None, pixel_samples: int | str | None = None, residual: float | None = None, ground_prior: bool = True,
-                   body: str = "auto", height: float | None = None, say=print):
+                   body: str = "auto", height: float | None = None, say=print, likelihood: str = DEFAULT_LIKELIHOOD,
+                   likelihood_options: Mapping[str, Any] | None = None):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
     (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``; ``residual`` None:
     its own pose residual, ``TrackerRecipe.residual``); ``chunk_frames``
@@ -533,11 +544,12 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     as for ``prepare_test``; ``ground_prior``: the likelihood times the ground plane's prior
     (``add_ground_prior``), its clearance that of the validation motion; ``body`` and ``height``
     as for ``prepare_test`` (the validation file lends its body to a test file of the same
-    ``subject`` that has neither skeleton nor joints); ``say`` is told what was chosen.
+    ``subject`` that has neither skeleton nor joints); ``likelihood`` and ``likelihood_options``
+    as for ``prepare_test``; ``say`` is told what was chosen.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
     """
-    from ._registry import get_tracker, tracker_index
+    from ._registry import get_tracker
 
     recipe = get_tracker(method)
     if residual and recipe.residual is None:
@@ -546,7 +558,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     budget_ = Budget(budget, layers, refine_steps)
     recipe.check_budget(budget_)
     spectral = isinstance(model, SpectralEmbedding)
-    if recipe.needs_manifold and spectral != (recipe.manifold in SPECTRAL_MANIFOLD_KINDS):
+    if recipe.needs_manifold and spectral != (recipe.family == "spectral"):
         raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.manifolds)} manifold, and the model file holds a "
                          f"{type(model).__name__}{f' ({model.graph})' if spectral else ''}")
     check_model_layout(model, header, sequence, name)
@@ -556,14 +568,15 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     if validation_subject.poses is None:
         raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
     scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples,
-                         body=body, height=height, donors=[("the validation sequence", validation_subject, validation.subject)], say=say)
+                         body=body, height=height, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
+                         likelihood=likelihood, likelihood_options=likelihood_options)
     say(f"{name}: body {scene.body_source}; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth")
     starts = header.get("sequence_starts")
     validation_poses = validation_subject.poses
     if ground_prior:
         scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton]))
     motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts))
-    fit_key, run_root = tracker_keys(seed, tracker_index(method))
+    fit_key, run_root = tracker_keys(seed, method)
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
                             velocity_from=motion.validation if recipe.velocity_for(velocity) else None,
                             residual_from=motion.validation, residual_scale=recipe.residual_for(residual))

@@ -15,20 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from ..manifold import ManifoldPrior
+from ..manifold import ManifoldPrior, get_manifold_kind, manifold_kinds
 
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
 # 2 CPU cores (benchmarks/bench_gradient.py).
 GRADIENT_COST = 50.0
-GP_MANIFOLD_KINDS = ("bc-gplvm", "gpdm", "bc-gpdm")  # 000's BC-GPLVM, 001's GPDM, and the GPDM under 000's back-constraint
-SPECTRAL_MANIFOLD_KINDS = ("gle", "tle", "le")  # 002's Laplacian Eigenmaps family, with RBF networks
-MANIFOLD_KINDS = GP_MANIFOLD_KINDS + SPECTRAL_MANIFOLD_KINDS  # what tracking.fit_manifold fits
-# Latent dimensions when neither the experiment nor the tracker names one: 2 for the GP models
-# (000), 3 for the spectral ones (GLE in 2-D folds walks and jogs of several subjects onto each
-# other). A tracker may name its own (``TrackerRecipe.latent_dim``: MRPF 2, GPAPF and LatentPF 3).
-DEFAULT_LATENT_DIMS = {"bc-gplvm": 2, "gpdm": 2, "bc-gpdm": 2, "gle": 3, "tle": 3, "le": 3}
-
-
 @dataclasses.dataclass(frozen=True)
 class Budget:
     """Likelihood evaluations per frame, the annealing layers they may be split into, and the
@@ -112,9 +103,11 @@ class TrackerRecipe:
             ``budget.particles`` particles, annealed ones ``budget.per_layer`` per layer (both
             leave room for gradient-refined moves, which ``build_tracker`` adds).
         needs_manifold: whether ``fit`` reads ``MotionData.manifold``.
-        manifold: the manifold kind the tracker runs on by default (one of ``MANIFOLD_KINDS``),
-            fitted for it unless the experiment names one for every tracker.
-        manifolds: the manifold kinds the tracker can run on.
+        manifold: the manifold kind the tracker runs on by default (a registered kind,
+            ``manifold.manifold_kinds()``), fitted for it unless the experiment names one of its
+            family for every tracker.
+        manifolds: the manifold kinds the tracker can run on; None: every registered kind of
+            its default kind's family (``ManifoldKind.family``), those of plugins included.
         velocity: whether the tracker's dynamics carry a Kalman-tracked velocity
             (``dynamics.StateVelocity``) unless the experiment says otherwise for every tracker:
             on for the one-layer manifold trackers, whose step is the prior's; off for the
@@ -123,7 +116,7 @@ class TrackerRecipe:
         annealed: whether the budget is split into ``Budget.layers`` equal layers.
         min_layers: the fewest layers the tracker works with.
         latent_dim: the latent dimension of the tracker's manifold unless the experiment names
-            one for every tracker (None: the kind's default, ``DEFAULT_LATENT_DIMS``).
+            one for every tracker (None: the kind's own, ``ManifoldKind.latent_dim``).
         residual: for a tracker whose pose is decoded from a latent point, the default scale of
             an off-manifold pose residual (``dynamics.PoseResidual``; 0: none) unless the
             experiment names one for every such tracker; None for a tracker whose state holds
@@ -137,7 +130,7 @@ class TrackerRecipe:
     build: Callable[[Any, Any, Budget], Any]
     needs_manifold: bool = False
     manifold: str = "bc-gplvm"
-    manifolds: tuple[str, ...] = GP_MANIFOLD_KINDS
+    manifolds: tuple[str, ...] | None = None
     velocity: bool = False
     annealed: bool = False
     min_layers: int = 1
@@ -149,36 +142,46 @@ class TrackerRecipe:
             raise ValueError(f"a tracker name must be a non-empty word, got {self.name!r}")
         if not (callable(self.fit) and callable(self.build)):
             raise TypeError(f"tracker {self.name!r}: fit and build must be callables")
-        if self.manifold not in self.manifolds or not set(self.manifolds) <= set(MANIFOLD_KINDS):
+        known = manifold_kinds()
+        if self.manifold not in known or (self.manifolds is not None and (self.manifold not in self.manifolds
+                                                                          or not set(self.manifolds) <= set(known))):
             raise ValueError(f"tracker {self.name!r}: manifold {self.manifold!r} and manifolds {self.manifolds} must be "
-                             f"among {MANIFOLD_KINDS}, the first among the second")
+                             f"registered manifold kinds ({', '.join(known)}), the first among the second")
         if self.residual is not None and not (np.isfinite(self.residual) and self.residual >= 0):
             raise ValueError(f"tracker {self.name!r}: residual must be a scale >= 0 or None, got {self.residual!r}")
         if self.latent_dim is not None and (isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int)
                                             or self.latent_dim < 1):
             raise ValueError(f"tracker {self.name!r}: latent_dim must be a positive integer or None, got {self.latent_dim!r}")
 
+    @property
+    def family(self) -> str:
+        """The family of the tracker's manifold (``ManifoldKind.family``: "gp" or "spectral")."""
+        return get_manifold_kind(self.manifold).family
+
+    @property
+    def runs_on(self) -> tuple[str, ...]:
+        """The registered manifold kinds this tracker can run on."""
+        return self.manifolds if self.manifolds is not None else manifold_kinds(family=self.family, trackable=True)
+
     def manifold_for(self, requested: str | None) -> str:
         """The manifold kind this tracker runs on when the experiment asks for ``requested``
         (None: the tracker's own). A request names the manifold of every tracker of its family
-        (GP models: ``GP_MANIFOLD_KINDS``; Laplacian Eigenmaps: ``SPECTRAL_MANIFOLD_KINDS``):
-        a tracker of the other family keeps its own. Raises ``ValueError`` if the tracker
-        cannot run on a kind of its own family."""
+        (``ManifoldKind.family``): a tracker of the other family keeps its own. Raises
+        ``ValueError`` for an unknown kind, or one of its family the tracker cannot run on."""
         if requested is None:
             return self.manifold
-        family = SPECTRAL_MANIFOLD_KINDS if self.manifold in SPECTRAL_MANIFOLD_KINDS else GP_MANIFOLD_KINDS
-        if requested not in family:
+        if get_manifold_kind(requested).family != self.family:
             return self.manifold
-        if requested not in self.manifolds:
-            raise ValueError(f"{self.label} cannot run on a {requested} manifold (it runs on: {', '.join(self.manifolds)})")
+        if requested not in self.runs_on:
+            raise ValueError(f"{self.label} cannot run on a {requested} manifold (it runs on: {', '.join(self.runs_on)})")
         return requested
 
     def latent_dim_for(self, kind: str, requested: int | None) -> int:
         """The latent dimension of this tracker's ``kind`` manifold when the experiment asks for
-        ``requested`` (None: the tracker's own, else the kind's default)."""
+        ``requested`` (None: the tracker's own, else the kind's, ``ManifoldKind.latent_dim``)."""
         if requested is not None:
             return requested
-        return DEFAULT_LATENT_DIMS[kind] if self.latent_dim is None else self.latent_dim
+        return get_manifold_kind(kind).latent_dim if self.latent_dim is None else self.latent_dim
 
     def velocity_for(self, requested: bool | None) -> bool:
         """Whether this tracker carries a velocity when the experiment asks for ``requested``
@@ -237,7 +240,7 @@ def get_tracker(name: str) -> TrackerRecipe:
 
 
 def tracker_index(name: str) -> int:
-    """The position of ``name`` in the registry: the stream its runs' keys are folded from, so a
-    tracker's results do not depend on which other trackers an experiment runs."""
+    """The position of ``name`` in the registry (registration order). Keys do not follow it: a
+    tracker's keys follow its name (``tracking.tracker_stream``)."""
     get_tracker(name)
     return list(_REGISTRY).index(name)

@@ -8,7 +8,7 @@ forward kinematics in mm, for the GPDM the manifold trackers run on, on the prot
   start from (and GPAPF to project its estimates with);
 - ``nearest``: the latent point of the training pose nearest in joint angles, decoded.
 
-    taskset -c 0,1 python benchmarks/encode_floor.py --cmu /tmp/cmu --bandai /tmp/bandai --json floor.json
+    taskset -c 0,1 python experiments/encode_floor.py --cmu /tmp/cmu --bandai /tmp/bandai --json floor.json
 
 Prints one row per (sequence, latent dimension): the mean over the test frames and the error at
 frame 0, where every tracker starts.
@@ -17,7 +17,10 @@ frame 0, where every tracker starts.
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import write_json
 from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, protocol_names
 

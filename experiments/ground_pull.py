@@ -11,14 +11,17 @@ views). Prints per scene the shift of the best total log-likelihood, the median 
 best shift, and the log-likelihood lost at the true height (nats per frame); ``--plot`` draws
 the mean log-likelihood per frame against the shift.
 
-    taskset -c 0,1 python benchmarks/ground_pull.py --plot docs/figures/ground_pull.png --json ground_pull.json
-    taskset -c 0,1 python benchmarks/ground_pull.py --cmu /tmp/cmu --bandai /tmp/bandai --views 4 3
+    taskset -c 0,1 python experiments/ground_pull.py --plot docs/figures/ground_pull.png --json ground_pull.json
+    taskset -c 0,1 python experiments/ground_pull.py --cmu /tmp/cmu --bandai /tmp/bandai --views 4 3
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import add_output_arguments, pin_threads, write_json
 from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, other_body_scene, protocol_names
 

@@ -11,7 +11,7 @@ phi beside phase pi - phi (the same stride, the legs swinging the other way), an
 that drifts across the loop runs the cycle backwards. The figure plots each fitted trajectory
 coloured by which leg is ahead (left hip flexion minus right).
 
-    taskset -c 0,1 python benchmarks/gpdm_starts.py --cmu /tmp/cmu --plot docs/figures/gpdm_starts.png --json starts.json
+    taskset -c 0,1 python experiments/gpdm_starts.py --cmu /tmp/cmu --plot docs/figures/gpdm_starts.png --json starts.json
 """
 
 from __future__ import annotations
@@ -19,8 +19,10 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
+import sys
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import add_output_arguments, pin_threads, write_json
 
 STARTS = ("pca", "gle")

@@ -15,16 +15,19 @@ tracker's own body). ``--silhouettes clean`` and ``--size WxH`` render the proto
 without noise or larger (``real_motion.py``'s options). ``--plot`` draws the error and the gap
 per frame for the first protocol and view count.
 
-    taskset -c 0,1 python benchmarks/likelihood_gap.py --cmu /tmp/cmu --bandai /tmp/bandai --json likelihood_gap.json
-    taskset -c 0,1 python benchmarks/likelihood_gap.py --cmu /tmp/cmu --sequences cmu-jog --views 4 \\
+    taskset -c 0,1 python experiments/likelihood_gap.py --cmu /tmp/cmu --bandai /tmp/bandai --json likelihood_gap.json
+    taskset -c 0,1 python experiments/likelihood_gap.py --cmu /tmp/cmu --sequences cmu-jog --views 4 \\
         --methods sir apf mrpf gpapf latentpf --plot docs/figures/likelihood_gap.png
-    taskset -c 0,1 python benchmarks/likelihood_gap.py --demo --methods sir apf mrpf gpapf latentpf
+    taskset -c 0,1 python experiments/likelihood_gap.py --demo --methods sir apf mrpf gpapf latentpf
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import add_output_arguments, pin_threads, write_json
 from real_motion import PROTOCOLS, add_protocol_arguments, add_scene_arguments, load_protocol_takes, other_body_scene, protocol_names
 

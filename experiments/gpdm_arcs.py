@@ -8,7 +8,7 @@ latent step between consecutive frames:
   take (a large gap leaves the dynamics GP no transition out of the take's end);
 - ``largest step``: the largest step between consecutive frames of one take (a jump in the arc).
 
-    taskset -c 0,1 python benchmarks/gpdm_arcs.py --cmu /tmp/cmu --bandai /tmp/bandai \\
+    taskset -c 0,1 python experiments/gpdm_arcs.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --json arcs.json --figure docs/figures/gpdm_arcs.png
 
 ``--figure`` draws the first sequence's 2-D latent points of each kind, coloured by take.
@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import write_json
 from real_motion import PROTOCOLS, add_protocol_arguments, load_protocol_takes, protocol_names
 

@@ -3,7 +3,7 @@ whose torso is 20 % thicker, legs 15 % thinner and arms 10 % thicker than jaxtra
 capsules. The test files carry no ``capsule_radii``, so the trackers start from the defaults
 (with the subject's limb lengths), with and without ``--calibrate-shape``, in 4 views and in 3.
 
-    taskset -c 0,1 python benchmarks/body_mismatch.py --json body_mismatch.json
+    taskset -c 0,1 python experiments/body_mismatch.py --json body_mismatch.json
 
 Prints one table per setting and, with ``--json PATH``, writes every result there.
 """
@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import write_json
 
 BODY_FACTORS = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}

@@ -34,7 +34,7 @@ protocol (every option of that script applies):
   GPAPF's 4) score the silhouettes at half the resolution (40x30 for 80x60), the rest, and
   GPAPF's final layer, at the full one. A coarse evaluation is counted as a full one.
 
-    taskset -c 0,1 python benchmarks/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
+    taskset -c 0,1 python experiments/tracker_variants.py --cmu /tmp/cmu --bandai /tmp/bandai \\
         --sequences cmu-jog --views 4 --runs 5 --fit-steps 200 \\
         --methods mrpf mrpf-final mrpf-anneal latentpf latentpf-final latentpf-anneal --json variants.json
 """
@@ -259,7 +259,7 @@ VARIANTS = [
 if __name__ == "__main__":
     for recipe in VARIANTS:
         register_tracker(recipe, replace=True)
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))
     import real_motion
 
     real_motion.main()

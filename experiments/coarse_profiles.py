@@ -3,7 +3,7 @@ eq. 12 (mean over views) along one pose entry at a time, at the tracked resoluti
 coarse level the first annealing layers score (``likelihood.coarsen_likelihood``: silhouettes
 block-averaged by ``--factor``, cameras rescaled, the soft edge one coarse pixel wide).
 
-    python benchmarks/coarse_profiles.py --plot docs/figures/coarse_profiles.png --json profiles.json
+    python experiments/coarse_profiles.py --plot docs/figures/coarse_profiles.png --json profiles.json
 
 Scene: the demo's S2 jog (synthetic, 60 Hz), frame ``--frame``, rendered with
 background-subtraction noise into the default 4-view rig at ``--width`` x ``--height``; the
@@ -19,7 +19,10 @@ calls, and the ratio coarse / tracked.
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks"))  # bench_output, real_motion
 from bench_output import add_output_arguments, pin_threads, write_json
 
 PROFILES = (  # (entry, label, unit scale for the axis, half-range in pose units)

@@ -1,0 +1,120 @@
+"""The likelihood registry: every likelihood a test scene can be tracked with, by name, in one
+table that ``tracking.prepare_test`` (so ``jaxtrack experiment``, ``jaxtrack track`` and the
+demo) reads.
+
+A likelihood recipe builds an ``AbstractLikelihood`` from what a test scene offers
+(``SceneInputs``: the body, the cameras, the observed silhouettes, the temperature) and its own
+options. Register one of your own with ``register_likelihood(LikelihoodRecipe(...))``; loaded
+with ``--plugin``, it is then a ``--likelihood`` of ``jaxtrack experiment`` and ``jaxtrack
+track``, its options given by ``--likelihood-option KEY=VALUE``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from ._base import AbstractLikelihood
+from ._silhouette import make_silhouette_likelihood
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneInputs:
+    """What a test scene offers a likelihood builder.
+
+    Attributes:
+        body: the subject's ``BodyModel`` (skeleton and capsules) the likelihood renders or
+            projects; a likelihood that holds it as a field is fitted by ``calibrate_body``.
+        rig: the calibrated ``CameraRig`` (C views).
+        silhouettes: (C, T, H, W) float32 observed silhouettes in [0, 1], the tracked frames.
+        scale: the temperature, ``ln p = -scale * cost`` (``--likelihood-scale``).
+        window: the silhouette window requested (``"auto"``, None for dense, or (rows, cols)).
+    """
+
+    body: Any
+    rig: Any
+    silhouettes: Any
+    scale: float
+    window: Any = "auto"
+
+
+@dataclasses.dataclass(frozen=True)
+class LikelihoodRecipe:
+    """How to make one likelihood.
+
+    Attributes:
+        name: the registry name (``--likelihood NAME``).
+        description: one line for ``--help`` and the docs.
+        build: ``(SceneInputs, **options) -> AbstractLikelihood`` whose ``log_likelihood(poses,
+            observation)`` reads one frame's (C, H, W) silhouettes.
+        options: the builder's keyword options and their defaults (``--likelihood-option K=V``;
+            each value is parsed as its default's type).
+    """
+
+    name: str
+    description: str
+    build: Callable[..., AbstractLikelihood]
+    options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self):
+        if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
+            raise ValueError(f"a likelihood's name must be a non-empty word, got {self.name!r}")
+        if not callable(self.build):
+            raise TypeError(f"likelihood {self.name!r}: build must be a callable")
+
+    def make(self, inputs: SceneInputs, **options) -> AbstractLikelihood:
+        """The likelihood of a scene; ``options`` override ``self.options``. Raises
+        ``ValueError`` for an option the recipe does not take, ``TypeError`` if the builder does
+        not return an ``AbstractLikelihood``."""
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            raise ValueError(f"likelihood {self.name!r} takes no option {', '.join(map(repr, unknown))}"
+                             f" (it takes: {', '.join(self.options) or 'none'})")
+        likelihood = self.build(inputs, **{**self.options, **options})
+        if not isinstance(likelihood, AbstractLikelihood):
+            raise TypeError(f"likelihood {self.name!r}: its builder returned a {type(likelihood).__name__}, "
+                            "not an AbstractLikelihood")
+        return likelihood
+
+
+_LIKELIHOODS: dict[str, LikelihoodRecipe] = {}
+
+
+def register_likelihood(recipe: LikelihoodRecipe, *, replace: bool = False) -> LikelihoodRecipe:
+    """Add a likelihood to the registry (``replace=True`` to redefine a name); returns it."""
+    if not isinstance(recipe, LikelihoodRecipe):
+        raise TypeError(f"register_likelihood takes a LikelihoodRecipe, got {type(recipe).__name__}")
+    if recipe.name in _LIKELIHOODS and not replace:
+        raise ValueError(f"a likelihood named {recipe.name!r} is already registered (pass replace=True to redefine it)")
+    _LIKELIHOODS[recipe.name] = recipe
+    return recipe
+
+
+def unregister_likelihood(name: str) -> None:
+    """Remove a likelihood from the registry."""
+    get_likelihood(name)
+    del _LIKELIHOODS[name]
+
+
+def get_likelihood(name: str) -> LikelihoodRecipe:
+    """The recipe registered as ``name``; raises ``ValueError`` listing the names otherwise."""
+    if name not in _LIKELIHOODS:
+        raise ValueError(f"unknown likelihood {name!r}; registered likelihoods: {', '.join(_LIKELIHOODS)}")
+    return _LIKELIHOODS[name]
+
+
+def available_likelihoods() -> tuple[str, ...]:
+    """The registered likelihood names, in registration order (the built-in ones first)."""
+    return tuple(_LIKELIHOODS)
+
+
+def _silhouette(inputs: SceneInputs, *, edge_width: float) -> AbstractLikelihood:
+    return make_silhouette_likelihood(inputs.body, inputs.rig, edge_width=edge_width, scale=inputs.scale, window=inputs.window,
+                                      silhouettes=inputs.silhouettes)
+
+
+DEFAULT_LIKELIHOOD = "silhouette"
+register_likelihood(LikelihoodRecipe(
+    DEFAULT_LIKELIHOOD, "the bidirectional silhouette likelihood through the soft rasteriser (000 eq. 12); "
+    "on sampled pixels above 160x120 (--pixel-samples)", _silhouette, {"edge_width": 1.0}))
