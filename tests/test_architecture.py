@@ -8,7 +8,7 @@ import pathlib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "jaxtrack"
-SHARED_PRIVATE = {"_custom_types", "_tree", "_validation"}  # top-level helpers every package may use
+SHARED_PRIVATE = {"_custom_types", "_registries", "_tree", "_validation"}  # top-level helpers every package may use
 
 
 def _package_of(path: pathlib.Path) -> tuple[str, ...]:

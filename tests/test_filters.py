@@ -809,3 +809,24 @@ def test_a_likelihood_that_breaks_its_contract_is_named_before_running(bad, mess
                     make_apf(FunctionLikelihood(bad), Q, 16, num_layers=2, dtype=jnp.float64)):
         with pytest.raises(TrackingError, match=message):
             run_filter(tracker, getkey(), jnp.zeros(2), ys)
+
+
+def test_a_filters_matrix_products_are_traced_at_full_float32_precision():
+    """``run_filter`` traces every product at ``Precision.HIGHEST``, so a GPU does not run a
+    filter's float32 products in TF32 (the manifold trackers lost the demo's people that way on
+    an H100); the user's own default is left as it was."""
+    import re
+
+    from jaxtrack.dynamics import PoseRandomWalk
+    from jaxtrack.filters import SIR
+    from jaxtrack.likelihood import as_likelihood
+
+    weights = jnp.ones((4, 3), jnp.float32)
+    likelihood = as_likelihood(lambda poses, observation: -jnp.sum((poses @ weights - observation) ** 2, axis=1))
+    tracker = SIR(PoseRandomWalk(jnp.full(4, 0.1, jnp.float32)), likelihood, 16)
+    text = str(jax.make_jaxpr(lambda key: run_filter(tracker, key, jnp.zeros(4, jnp.float32), jnp.zeros((3, 3), jnp.float32))[1].estimate)(
+        jax.random.key(0)))
+    precisions = set(re.findall(r"precision=\(?([A-Za-z.]+)", text))
+    assert precisions == {"Precision.HIGHEST"}, precisions
+    outside = str(jax.make_jaxpr(lambda poses: poses @ weights)(jnp.zeros((2, 4), jnp.float32)))
+    assert "HIGHEST" not in outside

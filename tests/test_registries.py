@@ -60,7 +60,7 @@ def test_the_built_in_kinds_and_likelihood_are_registered():
     assert manifold_kinds(family="spectral") == ("gle", "tle", "le")
     assert get_manifold_kind("gle").latent_dim == 3 and get_manifold_kind("gpdm").latent_dim == 2
     assert DEFAULT_LIKELIHOOD == "silhouette" and "silhouette" in available_likelihoods()
-    with pytest.raises(ValueError, match="unknown manifold kind 'pca'; registered kinds: bc-gplvm"):
+    with pytest.raises(ValueError, match="unknown manifold kind 'pca'; registered manifold kinds: bc-gplvm"):
         get_manifold_kind("pca")
     with pytest.raises(ValueError, match="unknown likelihood 'edges'; registered likelihoods: silhouette"):
         get_likelihood("edges")

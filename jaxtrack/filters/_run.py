@@ -22,11 +22,20 @@ def _constrain(state: FilterState, sharding) -> FilterState:
     return jax.tree.map(lambda x: jax.lax.with_sharding_constraint(x, sharding), state)
 
 
+# Matrix products inside a filter are traced at full float32 precision. On a GPU, JAX's default
+# lets float32 products run in TF32 (a 10-bit mantissa), which the GP predictive maps cannot
+# afford (measured in docs/testing.md, "On a GPU"). CPUs compute float32 products at full
+# precision either way.
+FILTER_MATMUL_PRECISION = "highest"
+
+
 @eqx.filter_jit
 def _init(filter_, key, initial_pose, num_frames: int, sharding=None):
     """The initial state and the per-frame keys (frame t uses the t-th of ``split(step_key)``)."""
     init_key, step_key = jax.random.split(key)
-    return _constrain(filter_.init(init_key, initial_pose), sharding), jax.random.split(step_key, num_frames)
+    with jax.default_matmul_precision(FILTER_MATMUL_PRECISION):
+        state = filter_.init(init_key, initial_pose)
+    return _constrain(state, sharding), jax.random.split(step_key, num_frames)
 
 
 @eqx.filter_jit
@@ -36,7 +45,8 @@ def _scan(filter_, state, keys, observations, sharding=None):
         state, info = filter_.step(frame_key, _constrain(state, sharding), observation)
         return _constrain(state, sharding), info
 
-    return jax.lax.scan(body, state, (keys, observations))
+    with jax.default_matmul_precision(FILTER_MATMUL_PRECISION):
+        return jax.lax.scan(body, state, (keys, observations))
 
 
 def particle_sharding(devices=None) -> jax.sharding.NamedSharding:

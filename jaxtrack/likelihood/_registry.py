@@ -15,6 +15,7 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from .._registries import Registry, check_name
 from ._base import AbstractLikelihood
 from ._silhouette import make_silhouette_likelihood
 
@@ -58,8 +59,7 @@ class LikelihoodRecipe:
     options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self):
-        if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
-            raise ValueError(f"a likelihood's name must be a non-empty word, got {self.name!r}")
+        check_name("likelihood", self.name)
         if not callable(self.build):
             raise TypeError(f"likelihood {self.name!r}: build must be a callable")
 
@@ -78,35 +78,27 @@ class LikelihoodRecipe:
         return likelihood
 
 
-_LIKELIHOODS: dict[str, LikelihoodRecipe] = {}
+_LIKELIHOODS: Registry[LikelihoodRecipe] = Registry("likelihood", LikelihoodRecipe, "register_likelihood")
 
 
 def register_likelihood(recipe: LikelihoodRecipe, *, replace: bool = False) -> LikelihoodRecipe:
     """Add a likelihood to the registry (``replace=True`` to redefine a name); returns it."""
-    if not isinstance(recipe, LikelihoodRecipe):
-        raise TypeError(f"register_likelihood takes a LikelihoodRecipe, got {type(recipe).__name__}")
-    if recipe.name in _LIKELIHOODS and not replace:
-        raise ValueError(f"a likelihood named {recipe.name!r} is already registered (pass replace=True to redefine it)")
-    _LIKELIHOODS[recipe.name] = recipe
-    return recipe
+    return _LIKELIHOODS.register(recipe, replace=replace)
 
 
 def unregister_likelihood(name: str) -> None:
     """Remove a likelihood from the registry."""
-    get_likelihood(name)
-    del _LIKELIHOODS[name]
+    _LIKELIHOODS.unregister(name)
 
 
 def get_likelihood(name: str) -> LikelihoodRecipe:
     """The recipe registered as ``name``; raises ``ValueError`` listing the names otherwise."""
-    if name not in _LIKELIHOODS:
-        raise ValueError(f"unknown likelihood {name!r}; registered likelihoods: {', '.join(_LIKELIHOODS)}")
-    return _LIKELIHOODS[name]
+    return _LIKELIHOODS.get(name)
 
 
 def available_likelihoods() -> tuple[str, ...]:
     """The registered likelihood names, in registration order (the built-in ones first)."""
-    return tuple(_LIKELIHOODS)
+    return _LIKELIHOODS.names()
 
 
 def _silhouette(inputs: SceneInputs, *, edge_width: float) -> AbstractLikelihood:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .._registries import Registry, check_name
 from ._bc_gpdm import make_bc_gpdm
 from ._models import make_bc_gplvm, make_gpdm, make_gplvm
 from ._sparse import make_sparse_gplvm
@@ -57,8 +58,7 @@ class ManifoldKind:
     trackable: bool = True
 
     def __post_init__(self):
-        if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
-            raise ValueError(f"a manifold kind's name must be a non-empty word, got {self.name!r}")
+        check_name("manifold kind", self.name)
         if not callable(self.make):
             raise TypeError(f"manifold kind {self.name!r}: make must be a callable")
         if self.family not in FAMILIES:
@@ -98,36 +98,28 @@ class ManifoldKind:
         return self.make(sequences, latent_dim, key=key, **{**self.options, **options})
 
 
-_KINDS: dict[str, ManifoldKind] = {}
+_KINDS: Registry[ManifoldKind] = Registry("manifold kind", ManifoldKind, "register_manifold_kind")
 
 
 def register_manifold_kind(kind: ManifoldKind, *, replace: bool = False) -> ManifoldKind:
     """Add a manifold kind to the registry (``replace=True`` to redefine a name); returns it."""
-    if not isinstance(kind, ManifoldKind):
-        raise TypeError(f"register_manifold_kind takes a ManifoldKind, got {type(kind).__name__}")
-    if kind.name in _KINDS and not replace:
-        raise ValueError(f"a manifold kind named {kind.name!r} is already registered (pass replace=True to redefine it)")
-    _KINDS[kind.name] = kind
-    return kind
+    return _KINDS.register(kind, replace=replace)
 
 
 def unregister_manifold_kind(name: str) -> None:
     """Remove a manifold kind from the registry."""
-    get_manifold_kind(name)
-    del _KINDS[name]
+    _KINDS.unregister(name)
 
 
 def get_manifold_kind(name: str) -> ManifoldKind:
     """The kind registered as ``name``; raises ``ValueError`` listing the names otherwise."""
-    if name not in _KINDS:
-        raise ValueError(f"unknown manifold kind {name!r}; registered kinds: {', '.join(_KINDS)}")
-    return _KINDS[name]
+    return _KINDS.get(name)
 
 
 def manifold_kinds(*, family: str | None = None, trackable: bool | None = None) -> tuple[str, ...]:
     """The registered kind names, in registration order, optionally of one ``family`` and
     (``trackable=True``) only those ``jaxtrack experiment`` fits for trackers."""
-    return tuple(name for name, kind in _KINDS.items()
+    return tuple(kind.name for kind in _KINDS.recipes()
                  if (family is None or kind.family == family) and (trackable is None or kind.trackable == trackable))
 
 
@@ -159,8 +151,10 @@ for _kind in (
                  lambda sequences, latent_dim, *, key=None, **options: make_bc_gpdm(sequences, latent_dim, **options), min_frames=2),
     ManifoldKind("gle", "Generalised Laplacian Eigenmap with its RBF networks (002 eqs. 2-6)", _spectral("gle"),
                  latent_dim=3, family="spectral", min_frames=5),
+    # A temporal graph links each frame to its neighbours in time: two frames per sequence keep it
+    # connected. GLE cuts each sequence into gait cycles, which need five.
     ManifoldKind("tle", "temporal Laplacian Eigenmap with its RBF networks (002)", _spectral("tle"),
-                 latent_dim=3, family="spectral", min_frames=5),
+                 latent_dim=3, family="spectral", min_frames=2),
     ManifoldKind("le", "Laplacian Eigenmap on a k-nearest-neighbour graph, with its RBF networks (002)", _spectral("le"),
                  latent_dim=3, family="spectral", min_total=11),
     ManifoldKind("gplvm", "GPLVM, MAP latent points (Lawrence 2005)", _concatenated(make_gplvm), trackable=False),

@@ -559,7 +559,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     recipe.check_budget(budget_)
     spectral = isinstance(model, SpectralEmbedding)
     if recipe.needs_manifold and spectral != (recipe.family == "spectral"):
-        raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.manifolds)} manifold, and the model file holds a "
+        raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.runs_on)} manifold, and the model file holds a "
                          f"{type(model).__name__}{f' ({model.graph})' if spectral else ''}")
     check_model_layout(model, header, sequence, name)
     check_frame_rates([sequence, validation], [name, "the validation sequence"])

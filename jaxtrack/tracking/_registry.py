@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .._registries import Registry, check_name
 from ..manifold import ManifoldPrior, get_manifold_kind, manifold_kinds
 
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
@@ -138,8 +139,7 @@ class TrackerRecipe:
     residual: float | None = None
 
     def __post_init__(self):
-        if not self.name or not isinstance(self.name, str) or any(c.isspace() for c in self.name):
-            raise ValueError(f"a tracker name must be a non-empty word, got {self.name!r}")
+        check_name("tracker", self.name)
         if not (callable(self.fit) and callable(self.build)):
             raise TypeError(f"tracker {self.name!r}: fit and build must be callables")
         known = manifold_kinds()
@@ -208,39 +208,31 @@ class TrackerRecipe:
             )
 
 
-_REGISTRY: dict[str, TrackerRecipe] = {}
+_TRACKERS: Registry[TrackerRecipe] = Registry("tracker", TrackerRecipe, "register_tracker")
 
 
 def register_tracker(recipe: TrackerRecipe, *, replace: bool = False) -> TrackerRecipe:
     """Add a tracker to the registry (``replace=True`` to redefine a name); returns it."""
-    if not isinstance(recipe, TrackerRecipe):
-        raise TypeError(f"register_tracker takes a TrackerRecipe, got {type(recipe).__name__}")
-    if recipe.name in _REGISTRY and not replace:
-        raise ValueError(f"a tracker named {recipe.name!r} is already registered (pass replace=True to redefine it)")
-    _REGISTRY[recipe.name] = recipe
-    return recipe
+    return _TRACKERS.register(recipe, replace=replace)
 
 
 def unregister_tracker(name: str) -> None:
     """Remove a tracker from the registry."""
-    get_tracker(name)
-    del _REGISTRY[name]
+    _TRACKERS.unregister(name)
 
 
 def available_trackers() -> tuple[str, ...]:
     """The registered tracker names, in registration order (the built-in ones first)."""
-    return tuple(_REGISTRY)
+    return _TRACKERS.names()
 
 
 def get_tracker(name: str) -> TrackerRecipe:
     """The recipe registered as ``name``; raises ``ValueError`` listing the names otherwise."""
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown tracker {name!r}; registered trackers: {', '.join(_REGISTRY)}")
-    return _REGISTRY[name]
+    return _TRACKERS.get(name)
 
 
 def tracker_index(name: str) -> int:
     """The position of ``name`` in the registry (registration order). Keys do not follow it: a
     tracker's keys follow its name (``tracking.tracker_stream``)."""
     get_tracker(name)
-    return list(_REGISTRY).index(name)
+    return _TRACKERS.names().index(name)
