@@ -53,7 +53,7 @@ from jaxtrack.body import GLOBAL_DOFS, humaneva_skeleton, joint_angles, mirrored
 from jaxtrack.dynamics import AbstractDynamics, PoseRandomWalk, fit_latent_dynamics, fit_mrpf_transition, fit_pose_random_walk
 from jaxtrack.filters import APF, SIR, AbstractFilter, FilterState, ProjectedMean, WeightedMean, choose_beta, get_resampler, smc_layer
 from jaxtrack.likelihood import AbstractLikelihood, coarsen_likelihood
-from jaxtrack.manifold import make_gpdm
+from jaxtrack.manifold import make_gpdm, to_prior
 from jaxtrack.tracking import TrackerRecipe, get_tracker, register_tracker
 
 FINAL_LAYER_SCALE = 0.5  # as GPAPF's final layer: half the pose random walk's steps
@@ -214,7 +214,7 @@ def _gle_start(name):
     def fit(key, motion):
         angles = [joint_angles(p) for p in motion.training]
         model, _ = make_gpdm(angles, motion.manifold.latent_dim, init="gle").fit(max_steps=GLE_START_STEPS, optimiser="optax")
-        return base.fit(key, dataclasses.replace(motion, manifold=model.prior(motion.manifold.global_dims), model=model))
+        return base.fit(key, dataclasses.replace(motion, manifold=to_prior(model, motion.manifold.global_dims), model=model))
 
     return dataclasses.replace(base, name=f"{name}-gle-start", label=f"{base.label}+GLE start", manifolds=("gpdm",), fit=fit,
                                description=f"{base.label} on a GPDM fitted from the GLE embedding instead of PCA")

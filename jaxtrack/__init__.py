@@ -14,13 +14,14 @@ subpackage keeps the rest.
 - Body and cameras: ``BodyModel``, ``humaneva_body``, ``forward_kinematics``,
   ``inverse_kinematics``, ``CameraRig``, ``default_rig``.
 - Manifolds: ``AbstractManifold``, ``ManifoldKind``, ``register_manifold_kind``,
-  ``fit_manifold``, ``load_model``, ``save_model``.
+  ``fit_manifold``, ``to_prior``, ``load_model``, ``save_model``.
 - Dynamics: ``AbstractDynamics``, ``fit_pose_random_walk``.
 - Likelihoods: ``AbstractLikelihood``, ``LikelihoodRecipe``, ``register_likelihood``,
   ``make_silhouette_likelihood``, ``check_silhouettes``.
 - Filters: ``AbstractFilter``, ``SIR``, ``APF``, ``run_filter``.
-- Trackers: ``TrackerRecipe``, ``register_tracker``, ``available_trackers``,
-  ``prepare_test``, ``track``, ``track_sequence``.
+- Trackers: ``TrackingSpec`` (how to track, validated once), ``TrackerRecipe``,
+  ``register_tracker``, ``available_trackers``, ``prepare_test``, ``track``,
+  ``track_sequence``.
 - Experiments and scores: ``ExperimentConfig``, ``run_experiment``, ``mean_joint_error_mm``,
   ``run_demo``.
 """
@@ -73,7 +74,9 @@ from .manifold import ManifoldKind as ManifoldKind
 from .manifold import load_model as load_model
 from .manifold import register_manifold_kind as register_manifold_kind
 from .manifold import save_model as save_model
+from .manifold import to_prior as to_prior
 from .tracking import TrackerRecipe as TrackerRecipe
+from .tracking import TrackingSpec as TrackingSpec
 from .tracking import available_trackers as available_trackers
 from .tracking import fit_manifold as fit_manifold
 from .tracking import prepare_test as prepare_test
@@ -95,6 +98,7 @@ __all__ = [
     "ManifoldKind",
     "Sequence",
     "TrackerRecipe",
+    "TrackingSpec",
     "available_trackers",
     "build_scene",
     "check_silhouettes",
@@ -118,6 +122,7 @@ __all__ = [
     "run_filter",
     "save_model",
     "save_sequence",
+    "to_prior",
     "track",
     "track_sequence",
 ]

@@ -15,7 +15,7 @@ def _demo(args) -> int:
 
     check_folder(args.out)
 
-    if args.likelihood:
+    if args.show_likelihood:
         run_likelihood_demo(args.out, seed=args.seed, num_frames=args.frames or 60, particles=args.budget or 500)
     else:
         run_demo(args.out, seed=args.seed, frames=args.frames or 40, budget=args.budget or 300, runs=args.runs,
@@ -178,13 +178,9 @@ def _experiment(args) -> int:
     from .experiment import ExperimentConfig, results_table, run_experiment
 
     config = ExperimentConfig(
-        methods=tuple(args.methods), budget=args.budget, layers=args.layers, runs=args.runs, latent_dim=args.latent_dim,
-        fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser,
-        likelihood_scale=args.likelihood_scale, frames=args.frames, seed=args.seed,
-        calibrate_shape=args.calibrate_shape, ground_prior=args.ground_prior, resolution=args.resolution,
-        pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=_body_choice(args), height=args.height,
-        refine_steps=args.refine_steps, velocity=args.velocity, manifold=args.manifold, batch_runs=args.batch_runs,
-        residual=args.residual, likelihood=args.likelihood, likelihood_options=_likelihood_options(args),
+        methods=tuple(args.methods), runs=args.runs, frames=args.frames, seed=args.seed, batch_runs=args.batch_runs,
+        latent_dim=args.latent_dim, fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold,
+        **_spec_fields(args),
     )
     from .io import check_folder
 
@@ -225,14 +221,10 @@ def _track(args) -> int:
     from .evaluation import mean_joint_error_mm
     from .io import check_output, load_sequence, save_sequence
     from .manifold import load_model
-    from .tracking import get_tracker, track_sequence
+    from .tracking import TrackingSpec, track_sequence
 
-    get_tracker(args.method)
-    body = _body_choice(args)
-    if args.height is not None:
-        from .body import check_height
-
-        check_height(args.height, "--height")
+    spec = TrackingSpec(**_spec_fields(args))
+    spec.check_method(args.method)
     args.out = check_output(args.out, [args.test, args.validation, args.model], suffix=".npz")
     sequence = load_sequence(args.test)
     validation = load_sequence(args.validation)
@@ -246,11 +238,7 @@ def _track(args) -> int:
         print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
 
     poses, joints, info = track_sequence(
-        sequence, model, header, args.method, validation, budget=args.budget, layers=args.layers,
-        likelihood_scale=args.likelihood_scale, seed=args.seed, name=os.path.basename(args.test), calibrate=args.calibrate_shape,
-        ground_prior=args.ground_prior, refine_steps=args.refine_steps, velocity=args.velocity,
-        pixel_samples="auto" if args.pixel_samples is None else args.pixel_samples, body=body, height=args.height,
-        residual=args.residual, likelihood=args.likelihood, likelihood_options=_likelihood_options(args),
+        sequence, model, header, args.method, validation, spec, seed=args.seed, name=os.path.basename(args.test),
         chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
         on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
     )
@@ -361,7 +349,7 @@ def _likelihood_options(args) -> dict:
 
 def build_parser() -> argparse.ArgumentParser:
     from .manifold import DEFAULT_OPTIMISER, OPTIMISERS, get_manifold_kind, manifold_kinds
-    from .tracking import GRADIENT_COST, PAPER_TRACKERS, available_trackers
+    from .tracking import PAPER_TRACKERS, available_trackers
 
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -376,13 +364,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run the pipeline end to end on the embedded synthetic default")
     demo.add_argument("--out", default="jaxtrack_demo", help="output folder (default: %(default)s)")
     demo.add_argument("--seed", type=int, default=0, help="PRNG seed (default: %(default)s)")
-    demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --likelihood)")
-    demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --likelihood)")
+    demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --show-likelihood)")
+    demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --show-likelihood)")
     demo.add_argument("--runs", type=int, default=2, help="runs per method (default: %(default)s)")
     demo.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
                       help="the trackers' likelihood times the ground plane's prior (--no-ground-prior: the silhouettes alone) "
                            "(default: on)")
-    demo.add_argument("--likelihood", action="store_true",
+    demo.add_argument("--show-likelihood", action="store_true",
                       help="instead: score true against perturbed poses and refine poses by gradient descent")
     demo.set_defaults(run=_demo)
 
@@ -445,8 +433,6 @@ def build_parser() -> argparse.ArgumentParser:
                             help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
     experiment.add_argument("--plugin", action="append", default=[],
                             help="a module (dotted name or .py file) to import first; it may register trackers")
-    experiment.add_argument("--budget", type=int, default=500, help="likelihood evaluations per frame (default: %(default)s)")
-    experiment.add_argument("--layers", type=int, default=5, help="annealing layers of APF and GPAPF (default: %(default)s)")
     experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
     experiment.add_argument("--batch-runs", action="store_true",
                             help="track each method's runs in one compiled call (vmapped over the runs' keys)")
@@ -458,38 +444,14 @@ def build_parser() -> argparse.ArgumentParser:
                             help="the manifold fit's L-BFGS: one evaluation per loop iteration (lbfgs, the default: compiles in "
                                  "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
                                  "measured before 2026-11-26)")
-    _likelihood_arguments(experiment)
-    experiment.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
     experiment.add_argument("--seed", type=int, default=0)
-    experiment.add_argument("--calibrate-shape", action="store_true",
-                            help="fit the capsule radii to each test sequence's first frame before tracking")
-    experiment.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
-                            help="keep the feet out of the floor (world z = 0): every tracker's likelihood times a prior on the "
-                                 "ankles' height, their clearance fitted on the validation motion (--no-ground-prior: the silhouettes "
-                                 "alone) (default: on)")
-    _body_arguments(experiment, "each test sequence")
-    experiment.add_argument("--resolution", type=_resolution, metavar="WxH",
-                            help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
-                                 "(e.g. 80x60 for 320x240 data)")
-    experiment.add_argument("--pixel-samples", type=int, metavar="N",
-                            help="score the silhouettes on N stratified sample pixels per view and frame (outline band, "
-                                 "interior, near and far background) instead of every pixel: a cost independent of the image "
-                                 "size; 0: every pixel (default: by the image size tracked at: every pixel up to 160x120, 2048 "
-                                 "up to 320x240, 4096 above; the choice is printed)")
-    experiment.add_argument("--refine-steps", type=int, default=0,
-                            help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
-                                 f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    experiment.add_argument("--velocity", action=argparse.BooleanOptionalAction,
-                            help="give every tracker's dynamics (--no-velocity: none) a Kalman-tracked velocity of the root (and "
-                                 "of the pose or latent point where the dynamics support it) fitted on the validation motion "
-                                 f"(default: each tracker's own: {_velocity_defaults()})")
     experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
                             help="the manifold of every manifold tracker of its family (GP: "
                                  f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "
                                  f"{', '.join(manifold_kinds(family='spectral', trackable=True))}; the other family keeps its "
                                  f"own) (default: each tracker's own: {_manifold_defaults()})")
-    experiment.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("every tracker"))
+    _spec_arguments(experiment, "every tracker", "each test sequence")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
@@ -502,28 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
     track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
-    track.add_argument("--budget", type=int, default=500)
-    track.add_argument("--layers", type=int, default=5)
-    _likelihood_arguments(track)
-    track.add_argument("--likelihood-scale", type=float, default=_SCALE)
     track.add_argument("--seed", type=int, default=0)
-    track.add_argument("--calibrate-shape", action="store_true", help="fit the capsule radii to the first frame before tracking")
-    _body_arguments(track, "the test sequence")
-    track.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
-                       help="keep the feet out of the floor (world z = 0): the likelihood times a prior on the ankles' height, "
-                            "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
-                            "(default: on)")
-    track.add_argument("--pixel-samples", type=int, metavar="N",
-                       help="score the silhouettes on N stratified sample pixels per view and frame instead of every pixel "
-                            "(a cost independent of the image size); 0: every pixel (default: by the image size: every pixel up "
-                            "to 160x120, 2048 up to 320x240, 4096 above; the choice is printed)")
-    track.add_argument("--refine-steps", type=int, default=0,
-                       help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
-                                 f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
-    track.add_argument("--velocity", action=argparse.BooleanOptionalAction,
-                       help="give the tracker's dynamics a Kalman-tracked velocity fitted on the validation motion, or not "
-                            f"(default: the tracker's own: {_velocity_defaults()})")
-    track.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help("the tracker"))
+    _spec_arguments(track, "the tracker", "the test sequence")
     track.add_argument("--max-degenerate", type=float, default=0.0,
                        help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
@@ -539,6 +481,56 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--out", help="output PNG (default: MODEL_latent.png)")
     plot.set_defaults(run=_plot_latent)
     return parser
+
+
+def _spec_arguments(parser, whose: str, sequences: str) -> None:
+    """The flags of a ``tracking.TrackingSpec`` that ``experiment`` and ``track`` share (read
+    back by ``_spec_fields``)."""
+    from .tracking import GRADIENT_COST
+
+    parser.add_argument("--budget", type=int, default=500, help="likelihood evaluations per frame (default: %(default)s)")
+    parser.add_argument("--layers", type=int, default=5, help="annealing layers of APF and GPAPF (default: %(default)s)")
+    _likelihood_arguments(parser)
+    parser.add_argument("--likelihood-scale", type=float, default=_SCALE, help="ln p = -scale * cost (default: %(default)s)")
+    parser.add_argument("--calibrate-shape", action="store_true",
+                        help=f"fit the capsule radii to {sequences}'s first frame before tracking")
+    parser.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
+                        help="keep the feet out of the floor (world z = 0): the likelihood times a prior on the ankles' height, "
+                             "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
+                             "(default: on)")
+    _body_arguments(parser, sequences)
+    parser.add_argument("--resolution", type=_resolution, metavar="WxH",
+                        help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
+                             "(e.g. 80x60 for 320x240 data)")
+    parser.add_argument("--pixel-samples", type=int, metavar="N",
+                        help="score the silhouettes on N stratified sample pixels per view and frame (outline band, "
+                             "interior, near and far background) instead of every pixel: a cost independent of the image "
+                             "size; 0: every pixel (default: by the image size tracked at: every pixel up to 160x120, 2048 "
+                             "up to 320x240, 4096 above; the choice is printed)")
+    parser.add_argument("--refine-steps", type=int, default=0,
+                        help="gradient-refined (MALA) moves per particle per frame, paid for out of the budget at "
+                             f"{GRADIENT_COST:g} evaluations a gradient (default: %(default)s, none)")
+    parser.add_argument("--velocity", action=argparse.BooleanOptionalAction,
+                        help=f"give {whose}'s dynamics (--no-velocity: none) a Kalman-tracked velocity of the root (and "
+                             "of the pose or latent point where the dynamics support it) fitted on the validation motion "
+                             f"(default: each tracker's own: {_velocity_defaults()})")
+    parser.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help(whose))
+
+
+def _spec_fields(args) -> dict:
+    """The ``TrackingSpec`` fields of the flags ``_spec_arguments`` adds (``--height`` checked
+    here, so its message names the flag)."""
+    if args.height is not None:
+        from .body import check_height
+
+        check_height(args.height, "--height")
+    return {
+        "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood, "likelihood_options": _likelihood_options(args),
+        "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
+        "body": _body_choice(args), "height": args.height, "resolution": args.resolution,
+        "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
+        "velocity": args.velocity, "residual": args.residual,
+    }
 
 
 def compilation_cache_folder() -> str | None:

@@ -5,7 +5,7 @@ and jogs of two subjects train a BC-GPLVM, another pair of sequences fits the tr
 SIR, APF, MRPF, GPAPF and LatentPF track two rendered test scenes; it prints the table of
 000 Table 1 and writes the results, error curves and an overlay animation.
 
-``run_likelihood_demo`` (``jaxtrack demo --likelihood``) shows the likelihood itself:
+``run_likelihood_demo`` (``jaxtrack demo --show-likelihood``) shows the likelihood itself:
 
 1. generate a walk for synthetic subject S1 and render it into 4 noisy silhouette views;
 2. save the scene as a sequence file and read it back (validated);

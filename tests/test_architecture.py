@@ -96,3 +96,37 @@ def test_notebooks_are_stored_without_outputs():
         for cell in json.loads(path.read_text())["cells"]:
             if cell["cell_type"] == "code":
                 assert not cell["outputs"] and cell["execution_count"] is None, f"{path.name}: outputs are not stripped"
+
+
+def _module_name(path: pathlib.Path) -> tuple[str, ...]:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return parts[:-1] if parts[-1] == "__init__" else parts
+
+
+def test_no_module_cycles_inside_a_package():
+    """Within a package, no two modules import each other, directly or through others (imports
+    inside functions count: a cycle hidden in a function is still a cycle)."""
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {}
+    for name, path in modules.items():
+        edges = set()
+        for _, parts, names in _imported_modules(path):
+            for target in [parts + (n,) for n in names] + [parts]:
+                if target in modules and target != name and target[:-1] == name[:-1] and target[-1] != "__init__":
+                    edges.add(target)
+                    break
+        graph[name] = edges
+    cycles = []
+
+    def visit(node, stack, seen):
+        for nxt in graph[node]:
+            if nxt in stack:
+                cycles.append(" -> ".join(".".join(m) for m in stack[stack.index(nxt):] + [nxt]))
+            elif nxt not in seen:
+                seen.add(nxt)
+                visit(nxt, stack + [nxt], seen)
+
+    for start in graph:
+        if start[-1] != "__init__" and len(start) > 1 and start[-1].startswith("_"):
+            visit(start, [start], {start})
+    assert not cycles, "\n".join(sorted(set(cycles)))

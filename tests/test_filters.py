@@ -12,16 +12,12 @@ from jaxtrack.filters import (
     RESAMPLERS,
     choose_beta,
     effective_sample_size,
-    make_apf,
-    make_gpapf,
-    make_latent_pf,
-    make_mrpf,
-    make_sir,
     normalise_log_weights,
     run_filter,
     survival_rate,
 )
 from jaxtrack.manifold import make_manifold_prior
+from jaxtrack.tracking import make_apf, make_gpapf, make_latent_pf, make_mrpf, make_sir
 
 from helpers import check_refinement_keeps_transition
 

@@ -14,7 +14,8 @@ import pytest
 LINEAR_GAUSSIAN = """
 import jax, jax.numpy as jnp, numpy as np
 jax.config.update("jax_enable_x64", True)
-from jaxtrack.filters import make_apf, make_sir, particle_sharding, run_filter
+from jaxtrack.filters import particle_sharding, run_filter
+from jaxtrack.tracking import make_apf, make_sir
 assert len(jax.devices()) == 2, jax.devices()
 Q, R = jnp.array([0.3, 0.2]), jnp.array([0.5, 0.4])
 likelihood = lambda poses, y: -0.5 * jnp.sum(((poses - y) / R) ** 2, axis=1)

@@ -3,23 +3,49 @@
 from __future__ import annotations
 
 import jax.numpy as jnp
-import jaxlie
+import numpy as np
 
 from .._custom_types import Array, Float
 from ._skeleton import Skeleton
 
 
-def joint_local_rotations(skeleton: Skeleton, pose: Float[Array, "*batch dofs"]) -> list:
-    """Local rotation of every joint's bone: J ``jaxlie.SO3`` with batch axes ``*batch``, or None.
+def _dof_generators(skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per rotational dof, the norm of its axis, and the cross-product matrix [a]x of its unit
+    axis and its square (static NumPy arrays): Rodrigues' formula for all dofs at once."""
+    axes = np.asarray(skeleton.dof_axes, np.float64).reshape(-1, 3)
+    norms = np.linalg.norm(axes, axis=1)
+    unit = axes / np.where(norms > 0, norms, 1.0)[:, None]
+    x, y, z = unit.T
+    zero = np.zeros_like(x)
+    cross = np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)], -2)
+    return norms, cross, cross @ cross
 
-    The dofs of a joint are applied in the order they appear in the pose layout
-    (intrinsic rotations: the first dof is outermost).
+
+def _dof_slots(skeleton: Skeleton) -> np.ndarray:
+    """(J, S) the dofs of each joint in pose order, padded with K (the identity's index)."""
+    per_joint = [[k for k, joint in enumerate(skeleton.dof_joint) if joint == j] for j in range(skeleton.num_joints)]
+    width = max(1, max(len(d) for d in per_joint))
+    identity = len(skeleton.dof_joint)
+    return np.asarray([d + [identity] * (width - len(d)) for d in per_joint], np.int32).reshape(skeleton.num_joints, width)
+
+
+def joint_local_rotations(skeleton: Skeleton, pose: Float[Array, "*batch dofs"]) -> Float[Array, "*batch joints 3 3"]:
+    """Local rotation matrix of every joint's bone (the identity for a joint without dofs).
+
+    The dofs of a joint are applied in the order they appear in the pose layout (intrinsic
+    rotations: the first dof is outermost). Each dof is a rotation by its angle about its axis
+    (Rodrigues' formula, all dofs in one vectorised expression: a short program to compile).
     """
-    local = [None] * skeleton.num_joints  # None: a joint without dofs (identity)
-    for k, (joint, axis) in enumerate(zip(skeleton.dof_joint, skeleton.dof_axes)):
-        tangent = pose[..., 3 + k, None] * jnp.asarray(axis, pose.dtype)
-        rotation = jaxlie.SO3.exp(tangent)
-        local[joint] = rotation if local[joint] is None else local[joint] @ rotation
+    norms, cross, cross2 = _dof_generators(skeleton)
+    theta = pose[..., 3:] * jnp.asarray(norms, pose.dtype)  # (*batch, K)
+    sin, one_minus_cos = jnp.sin(theta)[..., None, None], (1.0 - jnp.cos(theta))[..., None, None]
+    eye = jnp.eye(3, dtype=pose.dtype)
+    dofs = eye + sin * jnp.asarray(cross, pose.dtype) + one_minus_cos * jnp.asarray(cross2, pose.dtype)  # (*batch, K, 3, 3)
+    dofs = jnp.concatenate([dofs, jnp.broadcast_to(eye, dofs.shape[:-3] + (1, 3, 3))], axis=-3)
+    slots = _dof_slots(skeleton)
+    local = dofs[..., slots[:, 0], :, :]
+    for s in range(1, slots.shape[1]):
+        local = local @ dofs[..., slots[:, s], :, :]
     return local
 
 
@@ -28,19 +54,16 @@ def global_rotation_matrices(
 ) -> Float[Array, "*batch joints 3 3"]:
     """World orientation of every joint's bone frame as rotation matrices."""
     local = joint_local_rotations(skeleton, pose)
+    moved = set(skeleton.dof_joint)
     world = [None] * skeleton.num_joints
     for j, parent in enumerate(skeleton.parents):
         if parent < 0:
-            world[j] = local[j].as_matrix() if local[j] is not None else _eye_like(pose)
-        elif local[j] is None:
+            world[j] = local[..., j, :, :]
+        elif j not in moved:
             world[j] = world[parent]
         else:
-            world[j] = world[parent] @ local[j].as_matrix()
+            world[j] = world[parent] @ local[..., j, :, :]
     return jnp.stack(world, axis=-3)
-
-
-def _eye_like(pose):
-    return jnp.broadcast_to(jnp.eye(3, dtype=pose.dtype), pose.shape[:-1] + (3, 3))
 
 
 def forward_kinematics(

@@ -8,8 +8,11 @@ and two wrappers for any of them: a Kalman-tracked velocity and an off-manifold 
 from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
 from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
 from ._base import AbstractDynamics as AbstractDynamics
+from ._base import AbstractDynamicsWrapper as AbstractDynamicsWrapper
+from ._base import AbstractRefinableDynamics as AbstractRefinableDynamics
 from ._base import as_scale_vector as as_scale_vector
 from ._base import gaussian_step as gaussian_step
+from ._base import is_refinable as is_refinable
 from ._gle_graph import GLEGraphWalk as GLEGraphWalk
 from ._gle_graph import fit_gle_graph_walk as fit_gle_graph_walk
 from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics

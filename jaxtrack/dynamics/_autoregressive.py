@@ -18,10 +18,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractDynamics, check_scale_vector, gaussian_log_density, gaussian_step, motion_sequences
+from ._base import AbstractRefinableDynamics, check_scale_vector, gaussian_log_density, gaussian_step, motion_sequences
 
 
-class AutoregressivePoseDynamics(AbstractDynamics):
+class AutoregressivePoseDynamics(AbstractRefinableDynamics):
     """``x_t = x_{t-1} + a (x_{t-1} - x_{t-2}) + N(0, diag(scales^2))``; state ``[x_t, x_{t-1}]``.
 
     Attributes:

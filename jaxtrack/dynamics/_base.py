@@ -56,20 +56,39 @@ class AbstractDynamics(eqx.Module):
         latent dynamics) or whose state holds more than a pose's worth of a frame."""
         return poses[:, :6]
 
+
+class AbstractRefinableDynamics(AbstractDynamics):
+    """Dynamics with a tractable transition density: what a gradient-refined move
+    (``jaxtrack.filters.LangevinRefinement``) needs. Filters check for it with ``is_refinable``."""
+
+    @abc.abstractmethod
     def log_transition(
         self, previous: Float[Array, "particles state"], states: Float[Array, "particles state"]
     ) -> Float[Array, " particles"]:
         """``ln p(s_t | s_{t-1})`` of each particle's pair, up to a constant that does not
-        depend on ``s_t``: the prior term of a gradient-refined move's target
-        (``jaxtrack.filters.LangevinRefinement``). Dynamics without a tractable density raise
-        ``NotImplementedError``."""
-        raise NotImplementedError(f"{type(self).__name__} defines no transition density, so its particles cannot be refined")
+        depend on ``s_t``: the prior term of a gradient-refined move's target."""
 
+    @abc.abstractmethod
     def noise_scales(self) -> Float[Array, " state"]:
         """(S,) standard deviation of the transition's noise per state entry (0 for entries the
         transition sets exactly): the preconditioner of a gradient-refined move, whose steps
         leave zero-scale entries where they are."""
-        raise NotImplementedError(f"{type(self).__name__} defines no noise scales, so its particles cannot be refined")
+
+
+class AbstractDynamicsWrapper(AbstractDynamics):
+    """Dynamics that carry state entries of their own after those of an ``inner`` dynamics (a
+    Kalman-tracked velocity, an off-manifold residual). A wrapper that is an
+    ``AbstractRefinableDynamics`` is refinable when its inner dynamics are (``is_refinable``)."""
+
+    inner: eqx.AbstractVar[AbstractDynamics]
+
+
+def is_refinable(dynamics: AbstractDynamics) -> bool:
+    """Whether ``dynamics`` define the transition density and noise scales a gradient-refined
+    move needs: an ``AbstractRefinableDynamics``, and for a wrapper its inner dynamics too."""
+    if not isinstance(dynamics, AbstractRefinableDynamics):
+        return False
+    return is_refinable(dynamics.inner) if isinstance(dynamics, AbstractDynamicsWrapper) else True
 
 
 def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "particles state"]:

@@ -18,12 +18,12 @@ import jax.numpy as jnp
 
 from .._custom_types import Array, Float
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, gaussian_log_density, motion_sequences, rms_step
+from ._base import AbstractRefinableDynamics, check_scale_vector, gaussian_log_density, motion_sequences, rms_step
 from ._latent_noise import JUMP_STREAM, LatentNoiseMixture, check_latent_noise_fit, fit_latent_noise, gpdm_noise
 from ._latent_random_walk import fit_latent_random_walk, latent_states
 
 
-class GPDMLatentDynamics(AbstractDynamics):
+class GPDMLatentDynamics(AbstractRefinableDynamics):
     """GPDM predictive dynamics of the latent point, random walk of the global entries.
 
     Attributes:

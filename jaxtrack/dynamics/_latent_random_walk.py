@@ -11,10 +11,18 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_density, gaussian_step, motion_sequences, rms_step
+from ._base import (
+    AbstractRefinableDynamics,
+    check_scale_vector,
+    copies,
+    gaussian_log_density,
+    gaussian_step,
+    motion_sequences,
+    rms_step,
+)
 
 
-class LatentRandomWalk(AbstractDynamics):
+class LatentRandomWalk(AbstractRefinableDynamics):
     """Gaussian random walk of ``[global entries (G), latent point (q)]`` states.
 
     Attributes:

@@ -45,7 +45,15 @@ from jax.scipy.special import logsumexp
 
 from .._custom_types import Array, ArrayLike, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, copies, gaussian_log_density, gaussian_step, motion_sequences, rms_step
+from ._base import (
+    AbstractRefinableDynamics,
+    check_scale_vector,
+    copies,
+    gaussian_log_density,
+    gaussian_step,
+    motion_sequences,
+    rms_step,
+)
 from ._latent_noise import JUMP_STREAM, LatentNoiseMixture, check_latent_noise_fit, fit_latent_noise, gpdm_noise
 
 LATENT_STREAM = 7919  # fold_in tag of the latent noise, so the pose noise uses the key as SIR does
@@ -53,7 +61,7 @@ MRPF_PROPOSALS = ("product", "prior")
 MRPF_LATENT_PROPOSALS = ("back-constraint", "gpdm")
 
 
-class ManifoldRegularisedTransition(AbstractDynamics):
+class ManifoldRegularisedTransition(AbstractRefinableDynamics):
     """MRPF's transition (module docstring); the state is the pose.
 
     ``proposal`` picks how ``x_t`` is drawn after ``z_t``:

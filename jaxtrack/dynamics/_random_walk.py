@@ -9,7 +9,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ._base import (
-    AbstractDynamics,
+    AbstractRefinableDynamics,
     as_scale_vector,
     check_scale_vector,
     copies,
@@ -20,7 +20,7 @@ from ._base import (
 )
 
 
-class PoseRandomWalk(AbstractDynamics):
+class PoseRandomWalk(AbstractRefinableDynamics):
     """``x_t = x_{t-1} + N(0, diag(scales^2))``; the state is the pose.
 
     Attributes:

@@ -29,10 +29,19 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..body import GLOBAL_DOFS
-from ._base import AbstractDynamics, check_scale_vector, gaussian_log_density, gaussian_step, motion_sequences, rms_step
+from ._base import (
+    AbstractDynamics,
+    AbstractDynamicsWrapper,
+    AbstractRefinableDynamics,
+    check_scale_vector,
+    gaussian_log_density,
+    gaussian_step,
+    motion_sequences,
+    rms_step,
+)
 
 
-class PoseResidual(AbstractDynamics):
+class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
     """``inner`` with a random-walk residual of the joint angles (module docstring).
 
     State ``[inner state (S), r (A)]``, ``A = D - 6`` the joint-angle entries of a pose.

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractDynamics, check_scale_vector, motion_sequences
+from ._base import AbstractDynamics, AbstractDynamicsWrapper, AbstractRefinableDynamics, check_scale_vector, is_refinable, motion_sequences
 
 VELOCITY_DIM = 6  # forward, left, up (m/frame); yaw, pitch, roll rates (rad/frame)
 # A quarter of the draws restart from rest, set before any measurement (not tuned on the test
@@ -67,7 +67,7 @@ def world_to_heading(steps: np.ndarray, yaw: np.ndarray) -> np.ndarray:
     return np.concatenate([forward[:, None], left[:, None], steps[:, 2:]], axis=1)
 
 
-class StateVelocity(AbstractDynamics):
+class StateVelocity(AbstractDynamicsWrapper, AbstractRefinableDynamics):
     """``inner`` with a velocity of its K leading state entries, tracked by a Kalman filter per
     particle (module docstring).
 
@@ -106,12 +106,9 @@ class StateVelocity(AbstractDynamics):
         self.acceleration = acceleration
         self.initial_speed = initial_speed
         if displacement_noise is None:
-            try:
-                displacement_noise = inner.noise_scales()[: len(acceleration)]
-            except NotImplementedError:
-                raise ValueError(
-                    f"{type(inner).__name__} defines no noise scales: pass StateVelocity's displacement_noise"
-                ) from None
+            if not is_refinable(inner):
+                raise ValueError(f"{type(inner).__name__} defines no noise scales: pass StateVelocity's displacement_noise")
+            displacement_noise = inner.noise_scales()[: len(acceleration)]
         check_scale_vector("displacement_noise", displacement_noise, len(acceleration))
         horizontal = jnp.sqrt(0.5 * (displacement_noise[0] ** 2 + displacement_noise[1] ** 2))
         self.displacement_noise = jnp.asarray(displacement_noise).at[:2].set(horizontal)
@@ -234,10 +231,7 @@ class VelocityFit(eqx.Module):
     def wrap(self, dynamics: AbstractDynamics) -> StateVelocity:
         """``dynamics`` with this velocity (its K leading state entries); the displacement noise
         is the dynamics' own noise scales where it defines them."""
-        try:
-            noise = dynamics.noise_scales()[: self.acceleration.shape[0]]
-        except NotImplementedError:
-            noise = self.step_noise
+        noise = dynamics.noise_scales()[: self.acceleration.shape[0]] if is_refinable(dynamics) else self.step_noise
         return StateVelocity(dynamics, self.acceleration, self.initial_speed, noise, self.rest_probability)
 
 

@@ -116,39 +116,37 @@ def _runs(tracker, run_root, scene, config: ExperimentConfig):
         yield poses[run], joints[run], jax.tree.map(lambda x, r=run: x[r], infos), seconds
 
 
-def run_experiment(train, validation, test, config: ExperimentConfig | None = None, *, out_dir=None,
-                   names=None, progress=True, animations=True) -> dict:
-    """Run the experiment; returns the results (and writes them under ``out_dir`` if given).
+@dataclasses.dataclass
+class ExperimentInputs:
+    """What the fit and track stages read, built and checked before any fitting
+    (``prepare_inputs``).
 
-    Args:
-        train, validation, test: lists of ``Sequence``.
-        config: the settings (default ``ExperimentConfig()``); ``config.methods`` are registered
-            tracker names.
-        names: dict with lists "train", "validation", "test" of display names (file names).
-
-    Returns:
-        a dict with "config", "manifolds" (per manifold fitted, keyed ``manifold_label(kind,
-        latent_dim)``, e.g. "gpdm-2d": kind, class, frames, latent dimension, objective, steps,
-        fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
-        "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
-        entries carry a velocity and its fitted spreads), "residual" (per tracker that carries an
-        off-manifold pose residual, ``config.residual_of``: its scale and fitted step scales),
-        "shape_calibration" (per test sequence, with ``config.calibrate_shape``), "ground_prior"
-        (per test sequence, with ``config.ground_prior``: the ankle's clearance used, metres, that of
-        the validation motion, the tolerance and the floor's height),
-        "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
-        per-frame curve (mean over the runs, and each run's), the error at frame 0 and the start
-        pose's, per-part errors, frames/s, the mean ESS and the degenerate fraction),
-        "bodies" (per test sequence, ``TestScene.body_summary``: where its body came from, its limb
-        lengths and radii, the calibration, the inverse kinematics' residual per joint),
-        "ik_residual_mm" (per file with joints, the residual's mean, max and per-joint figures),
-        "likelihoods" (per test sequence, the registered likelihood's name, options, class and
-        pixel samples), "refused" (per method that could not run on these data, the reason: every other method
-        still runs), "warnings" (files whose skeleton cannot reach their joints)
-        and "estimates" (first run's poses and joints).
+    Attributes:
+        train_poses, validation_poses: (T_i, D) float64 poses of the training and validation
+            takes, each on its own body.
+        motion_subjects: per training and validation take's name, its ``SubjectBody``.
+        scenes: the prepared test scenes (``tracking.TestScene``), in the order of ``test_names``.
+        test_names: the test sequences' display names.
     """
-    config = ExperimentConfig() if config is None else config
-    say = print if progress else (lambda *a, **k: None)
+
+    train_poses: list
+    validation_poses: list
+    motion_subjects: dict
+    scenes: list
+    test_names: list
+
+
+def _new_results(config: ExperimentConfig) -> dict:
+    return {"config": config.as_dict(), "complete": False, "manifold": None, "manifolds": {}, "dynamics": {}, "velocity": {},
+            "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {}, "estimates": {},
+            "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}}
+
+
+def prepare_inputs(train, validation, test, config: ExperimentConfig, results: dict, *, names=None, say=print) -> ExperimentInputs:
+    """Stage 1 of ``run_experiment``: every file's body and poses, and every test scene (its
+    silhouettes, cameras, body, likelihood and ground prior) built and checked, so a bad last
+    file fails in seconds, not after the fits and the first tracks; records the bodies, the
+    inverse kinematics' residuals, the likelihoods and the ground priors in ``results``."""
     names = names or {}
     train_names = names.get("train") or [f"train{i}" for i in range(len(train))]
     validation_names = names.get("validation") or [f"validation{i}" for i in range(len(validation))]
@@ -159,10 +157,8 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     for seq, name in zip(test, test_names):
         check_test_sequence(seq, name)
     check_frame_rates([*train, *validation, *test], [*train_names, *validation_names, *test_names])
-    # The training and validation takes' bodies and poses (each its own skeleton: the file's, or
-    # the one inverse kinematics fits to its joints), then every test scene, built and checked
-    # (silhouettes, cameras that see the person, its body) before any fitting, so a bad last file
-    # fails in seconds, not after the fits and the first tracks.
+    # The training and validation takes' bodies and poses: each its own skeleton (the file's, or
+    # the one inverse kinematics fits to its joints).
     motion_subjects = {}
     for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]:
         resolved = subject_body(seq, name, key=ik_key)
@@ -173,15 +169,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     validation_poses = [motion_subjects[n].poses for n in validation_names]
     donors = [(name, motion_subjects[name], seq.subject) for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]]
     window = shared_window(test, config.frames, config.resolution)
-    scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, likelihood_scale=config.likelihood_scale, window=window,
-                           calibrate=config.calibrate_shape, resolution=config.resolution, pixel_samples=config.pixel_samples,
-                           body=config.body, height=config.height, donors=donors, say=say, likelihood=config.likelihood,
-                           likelihood_options=dict(config.likelihood_options))
+    scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, window=window, donors=donors, say=say,
+                           **config.scene_options())
               for seq, name in zip(test, test_names)]
-
-    results = {"config": config.as_dict(), "complete": False, "manifold": None, "dynamics": {}, "velocity": {},
-               "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {},
-               "estimates": {}, "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}}
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
         _warn_unreachable(resolved, name, results)
@@ -200,17 +190,24 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             prior = scene.ground_prior
             results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": clearance,
                                              "tolerance_m": float(prior.tolerance), "floor_height_m": float(prior.floor_height)}
+    return ExperimentInputs(train_poses, validation_poses, motion_subjects, scenes, test_names)
 
-    # Every method's preconditions before any fitting: a method that cannot run on these data is
-    # refused alone, and the others run.
-    def refuse(method, why):
-        if method not in results["refused"]:
-            results["refused"][method] = why
-            print(f"warning: {method_label(method)} refused: {why}")
 
+def _refuse(results: dict, method: str, why: str) -> None:
+    if method not in results["refused"]:
+        results["refused"][method] = why
+        print(f"warning: {method_label(method)} refused: {why}")
+
+
+def fit_methods(inputs: ExperimentInputs, config: ExperimentConfig, results: dict, *, progress=True, say=print) -> dict:
+    """Stage 2 of ``run_experiment``: every method's preconditions checked before any fitting
+    (a method that cannot run on these data is refused alone, and the others run), the manifolds
+    the methods need fitted once per (kind, latent dimension), then each method's dynamics.
+    Returns ``{method: fitted dynamics}`` of the methods that can run; records the manifolds,
+    the dynamics' parameters and the refusals in ``results``."""
+    train_poses, validation_poses = inputs.train_poses, inputs.validation_poses
     for method, why in method_problems(config, train_poses, validation_poses).items():
-        refuse(method, why)
-    results["manifolds"] = {}
+        _refuse(results, method, why)
     motions = {None: motion_data(train_poses, validation_poses)}
     for kind, latent_dim in config.manifold_specs:
         users = [m for m in config.methods if config.manifold_spec_of(m) == (kind, latent_dim) and m not in results["refused"]]
@@ -224,7 +221,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                                                        optimiser=config.fit_optimiser, key=jax.random.key(config.seed))
         except (ValueError, np.linalg.LinAlgError) as err:
             for method in users:
-                refuse(method, f"its {kind} manifold ({latent_dim}-D) could not be fitted: {err}")
+                _refuse(results, method, f"its {kind} manifold ({latent_dim}-D) could not be fitted: {err}")
             continue
         notes = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
         for note in notes:
@@ -238,21 +235,43 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
     if results["manifolds"]:
         results["manifold"] = next(iter(results["manifolds"].values()))
-    fitted, run_roots = {}, {}
+    fitted = {}
     for method in config.methods:
         if method in results["refused"]:
             continue
-        fit_key, run_roots[method] = tracker_keys(config.seed, method)
+        fit_key, _ = tracker_keys(config.seed, method)
         try:
             fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
         except (ValueError, np.linalg.LinAlgError) as err:
-            refuse(method, f"its dynamics could not be fitted: {err}")
+            _refuse(results, method, f"its dynamics could not be fitted: {err}")
             continue
         results["dynamics"][method] = dynamics_parameters(fitted[method])
-    methods = [m for m in config.methods if m in fitted]
+    return fitted
 
+
+def _record_dynamics(tracker, method: str, config: ExperimentConfig, results: dict, with_velocity: bool) -> None:
+    """The fitted residual and velocity of a built tracker, in results (once per method)."""
+    if config.residual_of(method) and method not in results["residual"]:
+        carrier = tracker.dynamics.inner if with_velocity else tracker.dynamics
+        results["residual"][method] = {"scale": config.residual_of(method),
+                                       "step_rad": np.asarray(carrier.scales, np.float64).round(6).tolist()}
+    if with_velocity and method not in results["velocity"]:
+        moving = tracker.dynamics
+        spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
+                   for name in ("acceleration", "initial_speed", "displacement_noise")}
+        results["velocity"][method] = {"entries": moving.size, "rest_probability": moving.rest_probability, **spreads}
+
+
+def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConfig, results: dict, *, out_dir=None,
+                  say=print) -> None:
+    """Stage 3 of ``run_experiment``: each fitted method built for each test scene and run
+    ``config.runs`` times with its own keys; the errors (000 eq. 31), curves, per-part errors,
+    frames/s, ESS and degenerate fractions recorded in ``results`` (written to ``out_dir`` after
+    each method, so an interruption loses the one in progress at most)."""
     budget = config.tracking_budget
-    for scene, name in zip(scenes, test_names):
+    validation_poses = inputs.validation_poses
+    methods = [m for m in config.methods if m in fitted]
+    for scene, name in zip(inputs.scenes, inputs.test_names):
         if scene.shape_calibration is not None:
             report = scene.shape_calibration
             results["shape_calibration"][name] = {
@@ -266,17 +285,10 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
             velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
                                     residual_from=validation_poses, residual_scale=config.residual_of(method))
-            if config.residual_of(method) and method not in results["residual"]:
-                carrier = tracker.dynamics.inner if velocity_from is not None else tracker.dynamics
-                results["residual"][method] = {"scale": config.residual_of(method),
-                                               "step_rad": np.asarray(carrier.scales, np.float64).round(6).tolist()}
-            if velocity_from is not None and method not in results["velocity"]:
-                moving = tracker.dynamics
-                spreads = {name: np.asarray(getattr(moving, name), np.float64).round(6).tolist()
-                           for name in ("acceleration", "initial_speed", "displacement_noise")}
-                results["velocity"][method] = {"entries": moving.size, "rest_probability": moving.rest_probability, **spreads}
+            _record_dynamics(tracker, method, config, results, velocity_from is not None)
+            _, run_root = tracker_keys(config.seed, method)
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
-            for run, (poses, joints, info, seconds) in enumerate(_runs(tracker, run_roots[method], scene, config)):
+            for run, (poses, joints, info, seconds) in enumerate(_runs(tracker, run_root, scene, config)):
                 times.append(seconds)
                 errors.append(float(mean_joint_error_mm(joints, scene.truth_joints)))
                 curves.append(np.asarray(per_frame_error_mm(joints, scene.truth_joints)))
@@ -311,7 +323,49 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
                       "likelihood was -inf or NaN (the filter tracked blind on uniform weights)")
             if out_dir is not None:  # saved as it goes: an interruption loses the tracker in progress at most
                 write_progress(results, out_dir)
+
+
+def run_experiment(train, validation, test, config: ExperimentConfig | None = None, *, out_dir=None,
+                   names=None, progress=True, animations=True) -> dict:
+    """Run the experiment in three stages, ``prepare_inputs`` (every file checked and every test
+    scene built), ``fit_methods`` (manifolds and dynamics) and ``track_methods`` (the runs), then
+    the report (``write_outputs``); returns the results (and writes them under ``out_dir`` if
+    given).
+
+    Args:
+        train, validation, test: lists of ``Sequence``.
+        config: the settings (default ``ExperimentConfig()``, a ``tracking.TrackingSpec`` plus
+            the trackers, runs, frames and seed); ``config.methods`` are registered tracker names.
+        names: dict with lists "train", "validation", "test" of display names (file names).
+
+    Returns:
+        a dict with "config", "manifolds" (per manifold fitted, keyed ``manifold_label(kind,
+        latent_dim)``, e.g. "gpdm-2d": kind, class, frames, latent dimension, objective, steps,
+        fit time; "manifold" is the first of them), "dynamics" (each tracker's fitted parameters),
+        "velocity" (per tracker that carries one, ``config.velocity_of``: how many leading state
+        entries carry a velocity and its fitted spreads), "residual" (per tracker that carries an
+        off-manifold pose residual, ``config.residual_of``: its scale and fitted step scales),
+        "shape_calibration" (per test sequence, with ``config.calibrate_shape``), "ground_prior"
+        (per test sequence, with ``config.ground_prior``: the ankle's clearance used, metres, that of
+        the validation motion, the tolerance and the floor's height),
+        "sequences" (per test sequence and tracker: mean and sd of the error over the runs, the
+        per-frame curve (mean over the runs, and each run's), the error at frame 0 and the start
+        pose's, per-part errors, frames/s, the mean ESS and the degenerate fraction),
+        "bodies" (per test sequence, ``TestScene.body_summary``: where its body came from, its limb
+        lengths and radii, the calibration, the inverse kinematics' residual per joint),
+        "ik_residual_mm" (per file with joints, the residual's mean, max and per-joint figures),
+        "likelihoods" (per test sequence, the registered likelihood's name, options, class and
+        pixel samples), "refused" (per method that could not run on these data, the reason: every other method
+        still runs), "warnings" (files whose skeleton cannot reach their joints)
+        and "estimates" (first run's poses and joints).
+    """
+    config = ExperimentConfig() if config is None else config
+    say = print if progress else (lambda *a, **k: None)
+    results = _new_results(config)
+    inputs = prepare_inputs(train, validation, test, config, results, names=names, say=say)
+    fitted = fit_methods(inputs, config, results, progress=progress, say=say)
+    track_methods(inputs, fitted, config, results, out_dir=out_dir, say=say)
     results["complete"] = True
     if out_dir is not None:
-        write_outputs(results, test, test_names, out_dir, animations=animations)
+        write_outputs(results, test, inputs.test_names, out_dir, animations=animations)
     return results

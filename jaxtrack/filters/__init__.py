@@ -1,12 +1,13 @@
 """Particle filters (``AbstractFilter``) built from one SMC layer: ``SIR`` (one layer per frame)
 and ``APF`` (annealed layers, optional final full-pose layer), optionally with gradient-refined
 particles (``LangevinRefinement``), each with any dynamics and
-likelihood; the papers' trackers as presets; resamplers, weights, estimators and the one jitted
+likelihood; resamplers, weights, estimators and the one jitted
 runner (docs/papers.md)."""
 
 from ._annealing import choose_beta as choose_beta
 from ._annealing import survival_rate as survival_rate
 from ._apf import APF as APF
+from ._base import AbstractComposedFilter as AbstractComposedFilter
 from ._base import AbstractFilter as AbstractFilter
 from ._base import FilterState as FilterState
 from ._base import StepInfo as StepInfo
@@ -16,11 +17,6 @@ from ._estimators import ProjectedMean as ProjectedMean
 from ._estimators import StateMean as StateMean
 from ._estimators import WeightedMean as WeightedMean
 from ._estimators import make_estimator as make_estimator
-from ._presets import make_apf as make_apf
-from ._presets import make_gpapf as make_gpapf
-from ._presets import make_latent_pf as make_latent_pf
-from ._presets import make_mrpf as make_mrpf
-from ._presets import make_sir as make_sir
 from ._refine import LangevinRefinement as LangevinRefinement
 from ._refine import RefineInfo as RefineInfo
 from ._refine import resample_and_refine as resample_and_refine

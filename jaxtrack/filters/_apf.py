@@ -22,7 +22,7 @@ import numpy as np
 from ..dynamics import AbstractDynamics
 from ..likelihood import AbstractLikelihood
 from ._annealing import check_annealing, choose_beta
-from ._base import AbstractFilter, FilterState, StepInfo, check_particles
+from ._base import AbstractComposedFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
 from ._refine import LangevinRefinement, resample_and_refine
 from ._resampling import get_resampler
@@ -31,7 +31,7 @@ from ._smc import check_layer_shapes, layer_keys, weigh_layer
 from ._weights import effective_sample_size
 
 
-class APF(AbstractFilter):
+class APF(AbstractComposedFilter):
     """Annealed particle filter: ``num_layers`` layers of ``num_particles`` each per frame
     (the papers' budget: 5 x 100).
 

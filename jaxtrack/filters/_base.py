@@ -12,11 +12,15 @@ one SMC layer of ``smc_layer``; ``run_filter`` scans ``step`` over the frames of
 from __future__ import annotations
 
 import abc
+import dataclasses
 from typing import Any
 
 import equinox as eqx
 
 from .._custom_types import Array, Bool, Float, PRNGKeyArray
+from ..dynamics import AbstractDynamics
+from ..likelihood import AbstractLikelihood
+from ._refine import LangevinRefinement
 
 
 class FilterState(eqx.Module):
@@ -67,6 +71,31 @@ class AbstractFilter(eqx.Module):
     @abc.abstractmethod
     def step(self, key: PRNGKeyArray, state: FilterState, observation: Any) -> tuple[FilterState, StepInfo]:
         """One frame: resample, propagate, weight, normalise, estimate (see ``smc_layer``)."""
+
+
+class AbstractComposedFilter(AbstractFilter):
+    """A filter composed of a dynamics and a likelihood (``SIR``, ``APF``), optionally with
+    gradient-refined moves, that says how to take new ones: ``with_dynamics``,
+    ``with_likelihood`` and ``with_refinement`` return a new filter built (and validated) by its
+    own constructor, so the pipeline wraps a tracker's dynamics (a velocity, a residual) or adds
+    refinement without reaching into its fields."""
+
+    dynamics: eqx.AbstractVar[AbstractDynamics]
+    likelihood: eqx.AbstractVar[AbstractLikelihood]
+    # and a field ``refine: LangevinRefinement | None`` (with a default, so not an AbstractVar)
+
+    def with_dynamics(self, dynamics: AbstractDynamics):
+        """This filter with ``dynamics`` in place of its own (checked as at construction)."""
+        return dataclasses.replace(self, dynamics=dynamics)
+
+    def with_likelihood(self, likelihood: AbstractLikelihood):
+        """This filter with ``likelihood`` in place of its own."""
+        return dataclasses.replace(self, likelihood=likelihood)
+
+    def with_refinement(self, refine: LangevinRefinement | None):
+        """This filter with gradient-refined moves ``refine`` (None: none); raises
+        ``ValueError`` if its dynamics define no transition density (``is_refinable``)."""
+        return dataclasses.replace(self, refine=refine)
 
 
 def check_particles(num_particles) -> None:

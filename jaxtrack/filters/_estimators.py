@@ -55,9 +55,11 @@ class ProjectedMean(AbstractEstimator):
         return jnp.concatenate([average[:g], projected])
 
 
-def make_estimator(name: str, manifold: ManifoldPrior | None = None) -> AbstractEstimator:
+def make_estimator(name: str | AbstractEstimator, manifold: ManifoldPrior | None = None) -> AbstractEstimator:
     """An estimator by name: "mean", "best", "latent_mean" (``StateMean``) or "data_mean"
-    (``ProjectedMean``, needs the manifold)."""
+    (``ProjectedMean``, needs the manifold); an ``AbstractEstimator`` is returned as it is."""
+    if isinstance(name, AbstractEstimator):
+        return name
     simple = {"mean": WeightedMean, "best": BestParticle, "latent_mean": StateMean}
     if name in simple:
         return simple[name]()

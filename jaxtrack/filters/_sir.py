@@ -8,9 +8,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..dynamics import AbstractDynamics
+from ..dynamics import AbstractDynamics, is_refinable
 from ..likelihood import AbstractLikelihood
-from ._base import AbstractFilter, FilterState, StepInfo, check_particles
+from ._base import AbstractComposedFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
 from ._refine import LangevinRefinement, resample_and_refine
 from ._resampling import get_resampler
@@ -19,7 +19,7 @@ from ._smc import layer_keys, smc_layer
 REFINE_STREAM = 104729  # fold_in tag of a frame's refinement key (without refinement, no key changes)
 
 
-class SIR(AbstractFilter):
+class SIR(AbstractComposedFilter):
     """Per frame: resample by the previous weights, ``s_t ~ dynamics.propose(s_{t-1})``, weight
     by ``p(I_t | pose(s_t))`` times the proposal's correction, estimate.
 
@@ -95,6 +95,6 @@ def check_refinement(refine, dynamics) -> None:
         return
     if not isinstance(refine, LangevinRefinement):
         raise TypeError(f"refine must be a LangevinRefinement or None, got {type(refine).__name__}")
-    if type(dynamics).log_transition is AbstractDynamics.log_transition or type(dynamics).noise_scales is AbstractDynamics.noise_scales:
-        raise ValueError(f"{type(dynamics).__name__} defines no transition density (log_transition, noise_scales), "
-                         "so its particles cannot be refined")
+    if not is_refinable(dynamics):
+        raise ValueError(f"{type(dynamics).__name__} defines no transition density (it is not an AbstractRefinableDynamics, "
+                         "with log_transition and noise_scales, all the way in), so its particles cannot be refined")

@@ -6,9 +6,7 @@ networks, and ``SpectralEmbedding`` (``fit_spectral``: LE, temporal LE or GLE wi
 networks, fitted in closed form), the manifold GLE-GbPF walks on. ``ManifoldKind`` and its
 registry name every kind that can be fitted (``manifold_kinds()``)."""
 
-from ._base import MANIFOLD_CLASSES as MANIFOLD_CLASSES
 from ._base import AbstractManifold as AbstractManifold
-from ._base import register_manifold as register_manifold
 from ._bc_gpdm import BCGPDM as BCGPDM
 from ._bc_gpdm import make_bc_gpdm as make_bc_gpdm
 from ._dtw import dtw_distance as dtw_distance
@@ -59,13 +57,17 @@ from ._predictor import AbstractPredictor as AbstractPredictor
 from ._predictor import GPPredictor as GPPredictor
 from ._prior import ManifoldPrior as ManifoldPrior
 from ._prior import make_manifold_prior as make_manifold_prior
+from ._prior import to_prior as to_prior
 from ._rbf import RBFNetwork as RBFNetwork
 from ._rbf import RBFPredictor as RBFPredictor
 from ._rbf import fit_gaussian_mixture as fit_gaussian_mixture
 from ._rbf import fit_rbf_network as fit_rbf_network
+from ._serialise import MANIFOLD_CLASSES as MANIFOLD_CLASSES
+from ._serialise import AbstractSaveableManifold as AbstractSaveableManifold
 from ._serialise import ModelFileError as ModelFileError
 from ._serialise import load_model as load_model
 from ._serialise import read_header as read_header
+from ._serialise import register_manifold as register_manifold
 from ._serialise import save_model as save_model
 from ._sparse import SparseGPLVM as SparseGPLVM
 from ._sparse import make_sparse_gplvm as make_sparse_gplvm

@@ -1,10 +1,11 @@
-"""The manifold interface every pose model implements, and the registry of model classes that
-``save_model`` / ``load_model`` know.
+"""The manifold interface every pose model implements: the model alone.
 
 A manifold maps joint angles (pose units) to a low-dimensional latent space and back: ``encode``
-(pose -> latent), ``decode`` (latent -> predictive mean and variance), a pure ``objective`` that
-``fit`` (``fit_model``) maximises over the leaves ``trainable`` marks, and a header/template
-pair that lets a saved file be read back into the right class and shapes.
+(pose -> latent), ``decode`` (latent -> predictive mean and variance), and a pure ``objective``
+that ``fit`` (``fit_model``) maximises over the leaves ``trainable`` marks. What tracking needs
+of it is ``to_prior`` (``_prior.py``: the predictive map factorised once), and what a file
+needs ``AbstractSaveableManifold`` (``_serialise.py``: a header and a template); both read this
+interface, and this module imports neither.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._inverse import check_inverse_method
+from ._inverse import check_inverse_method, encode_poses
 
 
 class AbstractManifold(eqx.Module):
@@ -60,15 +61,6 @@ class AbstractManifold(eqx.Module):
         """The learned map from standardised poses to latent points, or None when the model
         has none (then ``encode`` optimises 003 eq. 5)."""
 
-    @abc.abstractmethod
-    def header(self) -> dict:
-        """Class-specific fields for a saved file's header (what ``template`` needs)."""
-
-    @classmethod
-    @abc.abstractmethod
-    def template(cls, header: dict, dtype) -> AbstractManifold:
-        """A model of this class with the header's shapes (zeros), for loading a file into."""
-
     @property
     def latent_dim(self) -> int:
         return self.training_latent().shape[1]
@@ -93,12 +85,13 @@ class AbstractManifold(eqx.Module):
         if poses.ndim != 2 or poses.shape[1] != self.data_dim:
             raise ValueError(f"poses must be (m, {self.data_dim}), got {poses.shape}")
         check_inverse_method(method)
-        return self.prior(0).encode(poses, max_steps=max_steps, method=method)
+        return encode_poses(self.predictor(), self.back_constraint(), self.training_latent(), self.data, poses,
+                            max_steps=max_steps, method=method)
 
     def decode(self, latent: Float[Array, "m q"]) -> tuple[Float[Array, "m a"], Float[Array, " m"]]:
         """Predictive mean (pose units) and variance (standardised units, without the noise)
         at latent points (000 eqs. 23-26). Factorises the covariance on every call: trackers
-        use ``prior()`` once instead."""
+        use ``to_prior`` once instead."""
         return self.predictor()(latent)
 
     def fit(self, **options):
@@ -110,28 +103,7 @@ class AbstractManifold(eqx.Module):
 
         return fit_model(self, **options)
 
-    def prior(self, global_dims: int):
-        """This manifold precomputed for tracking (``ManifoldPrior``), covering the entries
-        ``global_dims..`` of a pose vector."""
-        from ._prior import ManifoldPrior
-
-        return ManifoldPrior(
-            predictor=self.predictor(), back_constraint=self.back_constraint(), training_latent=self.training_latent(),
-            training_data=self.data, global_dims=global_dims, latent_dynamics=self.latent_dynamics(),
-        )
-
     def latent_dynamics(self):
         """The latent dynamics' predictive map (a ``GPPredictor`` from ``x_{t-1}`` to ``x_t``),
         or None: only models with latent dynamics (``GPDM``) override this."""
         return None
-
-
-MANIFOLD_CLASSES: dict[str, type[AbstractManifold]] = {}
-
-
-def register_manifold(cls):
-    """Class decorator: make a manifold class saveable and loadable under its class name."""
-    if not (isinstance(cls, type) and issubclass(cls, AbstractManifold)):
-        raise TypeError(f"register_manifold takes an AbstractManifold subclass, got {cls!r}")
-    MANIFOLD_CLASSES[cls.__name__] = cls
-    return cls

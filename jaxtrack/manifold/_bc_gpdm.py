@@ -31,14 +31,14 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._base import AbstractManifold, register_manifold
 from ._kernels import LinearRBFKernel, RBFBiasKernel
 from ._models import GPDM, KernelBackConstraint, kernel_back_constraint, make_gpdm
 from ._predictor import GPPredictor
+from ._serialise import AbstractSaveableManifold, register_manifold
 
 
 @register_manifold
-class BCGPDM(AbstractManifold):
+class BCGPDM(AbstractSaveableManifold):
     """GPDM with latent points ``g(Y)`` (module docstring).
 
     Attributes:

@@ -27,6 +27,7 @@ import optimistix as optx
 from .._custom_types import Array, Float
 from ._kernels import squared_distances
 
+ENCODE_MAX_STEPS = 100  # BFGS iterations per pose (ample from the nearest training point)
 ENCODE_TOLERANCE = 1e-7  # BFGS rtol = atol on the objective's scale
 INVERSE_METHODS = ("projection", "likelihood")
 
@@ -71,3 +72,17 @@ def optimise_latent(
         return optx.minimise(objective, solver, z0, args=y, max_steps=max_steps, throw=False).value
 
     return jax.vmap(solve)(start, targets)
+
+
+def encode_poses(
+    predictor, back_constraint, training_latent: Float[Array, "n q"], training_data: Float[Array, "n a"],
+    angles: Float[Array, "m a"], *, max_steps: int | None = None, method: str = "projection",
+) -> Float[Array, "m q"]:
+    """Joint angles (pose units) -> latent points: the back-constraint where there is one (000
+    eq. 22), else ``optimise_latent`` by ``method`` (``max_steps`` BFGS iterations, default
+    ``ENCODE_MAX_STEPS``) from the nearest training latent point."""
+    standardised = (angles - predictor.mean) / predictor.scale
+    if back_constraint is not None:
+        return back_constraint(standardised)
+    steps = ENCODE_MAX_STEPS if max_steps is None else max_steps
+    return optimise_latent(predictor, training_latent, training_data, standardised, max_steps=steps, method=method)

@@ -22,7 +22,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractManifold, register_manifold
 from ._kernels import (
     LinearRBFKernel,
     RBFBiasKernel,
@@ -33,6 +32,7 @@ from ._kernels import (
     squared_distances,
 )
 from ._predictor import GPPredictor, full_gp_predictor
+from ._serialise import AbstractSaveableManifold, register_manifold
 from ._spectral import fit_spectral
 
 
@@ -106,7 +106,7 @@ def _initial_latent(Yn, latent_dim):
 
 
 @register_manifold
-class GPLVM(AbstractManifold):
+class GPLVM(AbstractSaveableManifold):
     """GPLVM with RBF + bias kernel (000 eqs. 13-16).
 
     Attributes:
@@ -203,7 +203,7 @@ class MLPBackConstraint(eqx.Module):
 
 
 @register_manifold
-class BCGPLVM(AbstractManifold):
+class BCGPLVM(AbstractSaveableManifold):
     """Back-constrained GPLVM (000 eqs. 21-22): the latent points are ``g(Y)``."""
 
     back: KernelBackConstraint | MLPBackConstraint
@@ -253,7 +253,7 @@ class BCGPLVM(AbstractManifold):
 
 
 @register_manifold
-class GPDM(AbstractManifold):
+class GPDM(AbstractSaveableManifold):
     """Gaussian process dynamical model (001 eqs. 5-11).
 
     Attributes:

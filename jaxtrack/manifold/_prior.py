@@ -2,8 +2,9 @@
 the pose -> latent map (the back-constraint g of 000 eq. 22, or a projection onto the mean
 surface, or the optimisation of 003 eq. 5),
 and which entries of the pose vector it covers (the joint angles; the global position and
-orientation stay outside it, 001 sec. 5). Made by ``AbstractManifold.prior`` or
-``make_manifold_prior``.
+orientation stay outside it, 001 sec. 5). Made by ``to_prior`` or
+``make_manifold_prior``: the model (``_base``) knows nothing of tracking, and this module reads
+the model's interface.
 """
 
 from __future__ import annotations
@@ -13,10 +14,9 @@ import jax.numpy as jnp
 
 from .._custom_types import Array, Float
 from .._tree import cast_floating
-from ._inverse import optimise_latent
+from ._base import AbstractManifold
+from ._inverse import encode_poses
 from ._predictor import AbstractPredictor, GPPredictor
-
-ENCODE_MAX_STEPS = 100  # BFGS iterations per pose (ample from the nearest training point)
 
 
 class ManifoldPrior(eqx.Module):
@@ -89,15 +89,28 @@ class ManifoldPrior(eqx.Module):
         ``ENCODE_MAX_STEPS``) either the projection onto the mean surface (``method=
         "projection"``: the decoded pose is as near as the manifold allows) or 003 eq. 5
         (``"likelihood"``); ``jaxtrack.manifold._inverse`` says why projection is the default."""
-        standardised = (angles - self.predictor.mean) / self.predictor.scale
-        if self.back_constraint is not None:
-            return self.back_constraint(standardised)
-        steps = ENCODE_MAX_STEPS if max_steps is None else max_steps
-        return optimise_latent(self.predictor, self.training_latent, self.training_data, standardised, max_steps=steps, method=method)
+        return encode_poses(self.predictor, self.back_constraint, self.training_latent, self.training_data, angles,
+                            max_steps=max_steps, method=method)
 
     def astype(self, dtype) -> ManifoldPrior:
         """The same prior with every floating array in ``dtype`` (trackers run in float32)."""
         return cast_floating(self, dtype)
+
+
+def to_prior(model: AbstractManifold, global_dims: int) -> ManifoldPrior:
+    """A fitted manifold precomputed for tracking: its predictive map factorised once, its
+    back-constraint, training latent points and data, and its latent dynamics (a GPDM's),
+    covering the entries ``global_dims..`` of a pose vector.
+
+    Raises:
+        TypeError: if ``model`` is not an ``AbstractManifold``.
+    """
+    if not isinstance(model, AbstractManifold):
+        raise TypeError(f"to_prior needs a fitted AbstractManifold, got {type(model).__name__}")
+    return ManifoldPrior(
+        predictor=model.predictor(), back_constraint=model.back_constraint(), training_latent=model.training_latent(),
+        training_data=model.data, global_dims=global_dims, latent_dynamics=model.latent_dynamics(),
+    )
 
 
 def make_manifold_prior(model, pose_dim: int, *, dtype=None) -> ManifoldPrior:
@@ -108,12 +121,10 @@ def make_manifold_prior(model, pose_dim: int, *, dtype=None) -> ManifoldPrior:
         TypeError: if ``model`` is not an ``AbstractManifold``.
         ValueError: if the model's data dimension does not fit inside the pose vector.
     """
-    from ._base import AbstractManifold
-
     if not isinstance(model, AbstractManifold):
         raise TypeError(f"make_manifold_prior needs a fitted AbstractManifold, got {type(model).__name__}")
     angles = model.data_dim
     if angles > pose_dim:
         raise ValueError(f"the manifold models {angles} pose entries but the pose vector has only {pose_dim}")
-    prior = model.prior(pose_dim - angles)
+    prior = to_prior(model, pose_dim - angles)
     return prior.astype(dtype) if dtype is not None else prior

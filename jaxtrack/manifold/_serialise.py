@@ -10,6 +10,7 @@ is expected) or another format version is refused clearly. Files are written ato
 
 from __future__ import annotations
 
+import abc
 import hashlib
 import io
 import json
@@ -21,11 +22,37 @@ import numpy as np
 
 from ..errors import ModelFileError
 from ..io import atomic_write
-from ._base import MANIFOLD_CLASSES, AbstractManifold
+from ._base import AbstractManifold
 
 FORMAT = "jaxtrack-manifold"
 VERSION = 3
 READABLE_VERSIONS = (1, 2, 3)  # version 1 files carry no payload length or checksum, version 2 none of the header
+
+
+class AbstractSaveableManifold(AbstractManifold):
+    """A manifold that can be written to a file and read back: the class-specific header fields
+    and a template of the right shapes to load the arrays into. Register a concrete class with
+    ``@register_manifold`` so ``load_model`` finds it by name."""
+
+    @abc.abstractmethod
+    def header(self) -> dict:
+        """Class-specific fields for a saved file's header (what ``template`` needs)."""
+
+    @classmethod
+    @abc.abstractmethod
+    def template(cls, header: dict, dtype) -> AbstractSaveableManifold:
+        """A model of this class with the header's shapes (zeros), for loading a file into."""
+
+
+MANIFOLD_CLASSES: dict[str, type[AbstractSaveableManifold]] = {}
+
+
+def register_manifold(cls):
+    """Class decorator: make a manifold class saveable and loadable under its class name."""
+    if not (isinstance(cls, type) and issubclass(cls, AbstractSaveableManifold)):
+        raise TypeError(f"register_manifold takes an AbstractSaveableManifold subclass, got {cls!r}")
+    MANIFOLD_CLASSES[cls.__name__] = cls
+    return cls
 
 
 def _header_digest(header: dict) -> str:
@@ -44,7 +71,7 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
         extra: JSON-serialisable metadata (e.g. the pose layout the data came from).
     """
     name = type(model).__name__
-    if not isinstance(model, AbstractManifold) or MANIFOLD_CLASSES.get(name) is not type(model):
+    if not isinstance(model, AbstractSaveableManifold) or MANIFOLD_CLASSES.get(name) is not type(model):
         raise TypeError(f"cannot save a {name}; saveable models are {sorted(MANIFOLD_CLASSES)}")
     n, d = model.data.shape
     q = model.latent_dim

@@ -19,9 +19,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import Array, Float
-from ._base import AbstractManifold, register_manifold
 from ._kernels import RBFBiasKernel, rbf_bias_kernel, safe_cholesky
 from ._predictor import GPPredictor
+from ._serialise import AbstractSaveableManifold, register_manifold
 
 APPROXIMATIONS = ("vfe", "dtc")
 INDUCING_JITTER = 1e-8  # relative jitter on K_uu, always added (inducing points may coincide)
@@ -61,7 +61,7 @@ def sparse_log_marginal(kernel: RBFBiasKernel, inducing, latent, Y, approximatio
 
 
 @register_manifold
-class SparseGPLVM(AbstractManifold):
+class SparseGPLVM(AbstractSaveableManifold):
     """GPLVM with M inducing points and the collapsed bound of the module docstring.
 
     Attributes:

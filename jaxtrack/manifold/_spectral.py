@@ -23,15 +23,15 @@ import numpy as np
 
 from .._custom_types import Array, Float, Int
 from ..errors import ConfigurationError
-from ._base import AbstractManifold, register_manifold
 from ._eigenmaps import gait_cycles, knn_graph, laplacian_embedding, stylistic_graph, stylistic_neighbours, temporal_graph
 from ._rbf import RBFNetwork, RBFPredictor, fit_rbf_network
+from ._serialise import AbstractSaveableManifold, register_manifold
 
 SPECTRAL_GRAPHS = ("le", "tle", "gle")  # plain LE, temporal LE, generalised LE (002)
 
 
 @register_manifold
-class SpectralEmbedding(AbstractManifold):
+class SpectralEmbedding(AbstractSaveableManifold):
     """A fitted LE / temporal LE / GLE embedding with its RBF networks.
 
     Attributes:

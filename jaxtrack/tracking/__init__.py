@@ -1,10 +1,21 @@
 """The tracking pipeline and the tracker registry: sequence -> poses -> manifold -> dynamics ->
 likelihood -> tracker -> estimates, over the pure core (``filters``, ``dynamics``,
 ``likelihood``, ``manifold``). Trackers are registered recipes; ``available_trackers()`` lists
-them and ``register_tracker`` adds your own."""
+them and ``register_tracker`` adds your own. Each paper tracker is defined once, in its recipe
+module: the filter it composes (``sir_filter``, ``apf_filter``, ``gpapf_filter``,
+``latent_pf_filter``), the same filter from noise scales given directly (``make_sir``,
+``make_apf``, ``make_mrpf``, ``make_gpapf``, ``make_latent_pf``) and its registered recipe."""
 
+from ._apf import apf_filter as apf_filter
+from ._apf import make_apf as make_apf
 from ._builtin import BUILTIN_RECIPES as BUILTIN_RECIPES
 from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
+from ._gpapf import gpapf_filter as gpapf_filter
+from ._gpapf import make_gpapf as make_gpapf
+from ._latentpf import latent_pf_filter as latent_pf_filter
+from ._latentpf import latent_random_walk as latent_random_walk
+from ._latentpf import make_latent_pf as make_latent_pf
+from ._mrpf import make_mrpf as make_mrpf
 from ._pipeline import CALIBRATION_FRAMES as CALIBRATION_FRAMES
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
 from ._pipeline import TestScene as TestScene
@@ -38,6 +49,9 @@ from ._registry import get_tracker as get_tracker
 from ._registry import register_tracker as register_tracker
 from ._registry import tracker_index as tracker_index
 from ._registry import unregister_tracker as unregister_tracker
+from ._sir import make_sir as make_sir
+from ._sir import sir_filter as sir_filter
+from ._spec import TrackingSpec as TrackingSpec
 from ._subject import BODY_CHOICES as BODY_CHOICES
 from ._subject import BODY_SOURCES as BODY_SOURCES
 from ._subject import SubjectBody as SubjectBody

@@ -2,12 +2,16 @@
 layers, then the final full-pose layer (001 Alg. 3) with half the pose random walk's scales.
 On a GPDM (its paper's manifold, the default) the latent points follow the GPDM's predictive
 dynamics mean, with its predictive sd scaled by the two-component mixture fitted on the
-validation motion (``LATENT_NOISE``); on a manifold without dynamics, a latent random walk."""
+validation motion (``LATENT_NOISE``); on a manifold without dynamics, a latent random walk.
+``make_gpapf`` builds the same filter on a latent random walk with scales given directly."""
 
 import jax.numpy as jnp
 
-from ..dynamics import PoseRandomWalk, fit_latent_dynamics, fit_pose_random_walk
-from ..filters import APF, ProjectedMean
+from ..dynamics import PoseRandomWalk, fit_latent_dynamics, fit_pose_random_walk, make_pose_random_walk
+from ..filters import APF, make_estimator
+from ..manifold import ManifoldPrior
+from ._apf import apf_filter
+from ._latentpf import latent_random_walk
 from ._registry import TrackerRecipe
 
 FINAL_LAYER_SCALE = 0.5  # the final layer's steps, relative to the pose random walk's
@@ -28,10 +32,27 @@ def fit(key, motion):
     return latent, PoseRandomWalk(FINAL_LAYER_SCALE * jnp.asarray(pose.scales))
 
 
+def gpapf_filter(latent, likelihood, num_particles: int, num_layers: int, *, final=None, estimator="data_mean", **options) -> APF:
+    """GPAPF (001 Alg. 2): annealing over (global entries, latent point) by the ``latent``
+    dynamics, ``final`` (a pose-space dynamics, or None) adding the final full-pose layer
+    (001 Alg. 3). Estimators (001 sec. 5.4): "data_mean" (the mean pose projected onto the
+    manifold), "latent_mean" (``mu(E[omega])``), "best"."""
+    return apf_filter(latent, likelihood, num_particles, num_layers, final_layer=final,
+                      estimator=make_estimator(estimator, latent.manifold), **options)
+
+
+def make_gpapf(likelihood, prior: ManifoldPrior, s_global, s_latent, num_particles: int, num_layers: int = 5, *, s_final=None,
+               estimator="data_mean", dtype=jnp.float32, **options) -> APF:
+    """GPAPF on a latent random walk with scales given directly; ``s_final`` (D,) adds the final
+    full-pose layer; ``options`` as ``APF``'s."""
+    final = None if s_final is None else make_pose_random_walk(s_final, prior.pose_dim, dtype=dtype)
+    return gpapf_filter(latent_random_walk(prior, s_global, s_latent, dtype), likelihood, num_particles, num_layers, final=final,
+                        estimator=estimator, **options)
+
+
 def build(fitted, likelihood, budget):
     latent, final = fitted
-    return APF(latent, likelihood, budget.per_layer, budget.layers - 1, final_layer=final,
-               estimator=ProjectedMean(latent.manifold))
+    return gpapf_filter(latent, likelihood, budget.per_layer, budget.layers - 1, final=final)
 
 
 # 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here: on real motion rendered

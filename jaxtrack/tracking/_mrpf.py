@@ -4,12 +4,16 @@ manifold, and "mrpf-alg1"'s default) the latent draw is eq. 27's; on a GPDM ("mr
 measured better on the real and the synthetic jogs, docs/trackers.md) the GPDM's predictive dynamics
 from the particle's own latent point. "mrpf" fits eq. 28's scales with each left joint angle and
 its right mirror sharing theirs, and raises eq. 30's factor to ``MANIFOLD_WEIGHT``; "mrpf-alg1"
-fits per angle, as printed."""
+fits per angle, as printed. ``make_mrpf`` builds the same filter from noise scales given
+directly."""
+
+import jax.numpy as jnp
 
 from ..body import humaneva_skeleton, mirrored_groups
-from ..dynamics import fit_mrpf_transition
-from ..filters import SIR
+from ..dynamics import ManifoldRegularisedTransition, as_scale_vector, fit_mrpf_transition
+from ..manifold import ManifoldPrior
 from ._registry import TrackerRecipe
+from ._sir import sir_filter
 
 
 def _latent_proposal(manifold):
@@ -46,7 +50,22 @@ def fit_printed(key, motion):
 
 
 def build(dynamics, likelihood, budget):
-    return SIR(dynamics, likelihood, budget.particles)
+    return sir_filter(dynamics, likelihood, budget.particles)
+
+
+def make_mrpf(likelihood, prior: ManifoldPrior, s_xx, s_xz, s_zx, num_particles: int, *, proposal="product",
+              resampler="systematic", estimator="mean", dtype=jnp.float32):
+    """MRPF with noise scales of 000 eqs. 27, 29, 30 given directly (``fit_mrpf_transition``
+    fits them); ``proposal="prior"`` is 000 Alg. 1 as printed, ``"product"`` (default) samples
+    eq. 28 exactly."""
+    dynamics = ManifoldRegularisedTransition(
+        manifold=prior.astype(dtype),
+        s_xx=jnp.asarray(as_scale_vector("s_xx", s_xx, prior.pose_dim, dtype), dtype),
+        s_xz=jnp.asarray(as_scale_vector("s_xz", s_xz, prior.latent_dim, dtype), dtype),
+        s_zx=jnp.asarray(as_scale_vector("s_zx", s_zx, prior.pose_dim - prior.global_dims, dtype), dtype),
+        proposal=proposal,
+    )
+    return sir_filter(dynamics, likelihood, num_particles, resampler=resampler, estimator=estimator)
 
 
 # 000 sec. 6.1: a 2-D latent space. (In 3-D, on real motion rendered with another body, one CMU jog

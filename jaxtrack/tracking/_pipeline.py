@@ -34,7 +34,7 @@ from ..body import (
 from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..errors import ConfigurationError
-from ..filters import LangevinRefinement, run_filter
+from ..filters import AbstractComposedFilter, LangevinRefinement, run_filter
 from ..io import Sequence
 from ..likelihood import (
     DEFAULT_LIKELIHOOD,
@@ -53,8 +53,9 @@ from ..likelihood import (
     sample_frames,
     with_body,
 )
-from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind
+from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
 from ._registry import Budget, MotionData, TrackerRecipe
+from ._spec import TrackingSpec
 from ._subject import SubjectBody, limb_lengths_of, subject_body
 
 TRACKING_DTYPE = jnp.float32
@@ -127,7 +128,7 @@ def motion_data(train_poses, validation_poses, model=None, training_starts=None)
     manifold = None
     if model is not None:
         with jax.enable_x64(True):
-            manifold = model.prior(validation_poses[0].shape[1] - model.data_dim)
+            manifold = to_prior(model, validation_poses[0].shape[1] - model.data_dim)
     return MotionData(
         training=tuple(np.asarray(p, np.float64) for p in train_poses),
         validation=tuple(np.asarray(p, np.float64) for p in validation_poses),
@@ -154,38 +155,39 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     carry a Kalman-tracked velocity (``jaxtrack.dynamics.StateVelocity``) of the state
     entries they support (``velocity_states``: the root for every dynamics, the pose for MRPF,
     the latent point for a latent random walk), fitted on those poses by ``fit_velocity``:
-    any tracker whose filter has a ``dynamics`` field (``SIR``, ``APF``) moves with the body
-    instead of diffusing behind it.
+    any tracker whose filter is an ``AbstractComposedFilter`` (``SIR``, ``APF``: it takes new
+    dynamics by ``with_dynamics``) moves with the body instead of diffusing behind it.
 
     With ``residual_scale`` > 0 the dynamics (inside the velocity) carry an off-manifold pose
     residual (``jaxtrack.dynamics.PoseResidual``) whose steps are ``residual_scale`` times the
     RMS joint-angle steps of the ``residual_from`` poses.
 
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
-    ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``): its ``refine`` field
-    is set, so any tracker whose filter has one (``SIR``, ``APF``) can be refined."""
+    ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``), given by the filter's
+    ``with_refinement``: any ``AbstractComposedFilter`` on refinable dynamics
+    (``dynamics.is_refinable``) can be refined."""
     recipe.check_budget(budget)
     tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    wants = [what for what, wanted in (("a pose residual", residual_scale), ("a velocity", velocity_from is not None),
+                                       ("refined moves", budget.refine_steps)) if wanted]
+    if wants and not isinstance(tracker, AbstractComposedFilter):
+        raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) is not an AbstractComposedFilter (a dynamics and a "
+                         f"likelihood it can take new ones of), so it cannot be given {' or '.join(wants)}")
     if residual_scale:
-        if not hasattr(tracker, "dynamics") or residual_from is None:
-            raise ValueError(f"a pose residual needs a filter with a 'dynamics' field ({recipe.label}'s is "
-                             f"{type(tracker).__name__}) and validation poses to fit it on")
+        if residual_from is None:
+            raise ValueError(f"a pose residual for {recipe.label} needs validation poses to fit it on")
         with jax.enable_x64(True):
             residual = fit_pose_residual(tracker.dynamics, [np.asarray(p, np.float64) for p in residual_from], residual_scale)
-        tracker = eqx.tree_at(lambda f: f.dynamics, tracker, cast_floating(residual, TRACKING_DTYPE))
+        tracker = tracker.with_dynamics(cast_floating(residual, TRACKING_DTYPE))
     if velocity_from is not None:
-        if not hasattr(tracker, "dynamics"):
-            raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'dynamics' field: it cannot carry a velocity")
         velocity = fit_velocity(tracker.dynamics, velocity_from)
-        tracker = eqx.tree_at(lambda f: f.dynamics, tracker, cast_floating(velocity, TRACKING_DTYPE).wrap(tracker.dynamics))
+        tracker = tracker.with_dynamics(cast_floating(velocity, TRACKING_DTYPE).wrap(tracker.dynamics))
     if not budget.refine_steps:
         return tracker
     refinement = LangevinRefinement(budget.refine_steps) if refinement is None else refinement
     if refinement.num_steps != budget.refine_steps:
         raise ValueError(f"the refinement makes {refinement.num_steps} moves, the budget pays for {budget.refine_steps}")
-    if not hasattr(tracker, "refine"):
-        raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) has no 'refine' field: it cannot be refined")
-    return eqx.tree_at(lambda f: f.refine, tracker, refinement, is_leaf=lambda x: x is None)
+    return tracker.with_refinement(refinement)
 
 
 def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray] | tuple[np.ndarray, ...]) -> VelocityFit:
@@ -531,32 +533,29 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
         raise ValueError(f"the model has {model.data_dim} pose entries, {name} has {len(expected)} joint angles")
 
 
-def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, *, budget: int = 500,
-                   layers: int = 5, likelihood_scale: float = 100.0, seed: int = 0, name: str = "test",
-                   calibrate: bool = False, refine_steps: int = 0, velocity: bool | None = None, chunk_frames: int | None = None,
-                   on_chunk=None, pixel_samples: int | str | None = None, residual: float | None = None, ground_prior: bool = True,
-                   body: str = "auto", height: float | None = None, say=print, likelihood: str = DEFAULT_LIKELIHOOD,
-                   likelihood_options: Mapping[str, Any] | None = None):
-    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence
-    (``velocity`` None: the tracker's own default, ``TrackerRecipe.velocity``; ``residual`` None:
-    its own pose residual, ``TrackerRecipe.residual``); ``chunk_frames``
-    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``pixel_samples``
-    as for ``prepare_test``; ``ground_prior``: the likelihood times the ground plane's prior
-    (``add_ground_prior``), its clearance that of the validation motion; ``body`` and ``height``
-    as for ``prepare_test`` (the validation file lends its body to a test file of the same
-    ``subject`` that has neither skeleton nor joints); ``likelihood`` and ``likelihood_options``
-    as for ``prepare_test``; ``say`` is told what was chosen.
+def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, spec: TrackingSpec | None = None, *,
+                   seed: int = 0, name: str = "test", chunk_frames: int | None = None, on_chunk=None, say=print):
+    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence,
+    tracked as ``spec`` says (default ``TrackingSpec()``: its budget, likelihood, body, ground
+    prior, velocity and residual; the manifold settings are the model file's). The validation
+    sequence fits the tracker's dynamics and the ground prior's clearance, and lends its body to
+    a test file of the same ``subject`` that has neither skeleton nor joints. ``chunk_frames``
+    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``say`` is told
+    what was chosen.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
-    """
-    from ._registry import get_tracker
 
-    recipe = get_tracker(method)
-    if residual and recipe.residual is None:
+    Raises:
+        ValueError: on a tracker that cannot run under ``spec`` or on this model, a residual for
+            a tracker that takes none, or files that do not fit each other.
+    """
+    spec = TrackingSpec() if spec is None else spec
+    if not isinstance(spec, TrackingSpec):
+        raise TypeError(f"track_sequence takes a TrackingSpec, got {type(spec).__name__}")
+    recipe = spec.check_method(method)
+    if spec.residual and recipe.residual is None:
         raise ValueError(f"{recipe.label} takes no pose residual: its state holds the pose itself (or its estimate is "
                          f"projected onto the manifold); the trackers that take one decode their pose from a latent point")
-    budget_ = Budget(budget, layers, refine_steps)
-    recipe.check_budget(budget_)
     spectral = isinstance(model, SpectralEmbedding)
     if recipe.needs_manifold and spectral != (recipe.family == "spectral"):
         raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.runs_on)} manifold, and the model file holds a "
@@ -567,17 +566,16 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     validation_subject = subject_body(validation, "the validation sequence", key=key)
     if validation_subject.poses is None:
         raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
-    scene = prepare_test(sequence, name, key=key, likelihood_scale=likelihood_scale, calibrate=calibrate, pixel_samples=pixel_samples,
-                         body=body, height=height, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
-                         likelihood=likelihood, likelihood_options=likelihood_options)
+    scene = prepare_test(sequence, name, key=key, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
+                         **spec.scene_options())
     say(f"{name}: body {scene.body_source}; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth")
     starts = header.get("sequence_starts")
     validation_poses = validation_subject.poses
-    if ground_prior:
+    if spec.ground_prior:
         scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton]))
     motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts))
     fit_key, run_root = tracker_keys(seed, method)
-    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, budget_,
-                            velocity_from=motion.validation if recipe.velocity_for(velocity) else None,
-                            residual_from=motion.validation, residual_scale=recipe.residual_for(residual))
+    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, spec.tracking_budget,
+                            velocity_from=motion.validation if spec.velocity_of(method) else None,
+                            residual_from=motion.validation, residual_scale=spec.residual_of(method))
     return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)
