@@ -545,15 +545,16 @@ def compilation_cache_folder() -> str | None:
 
 
 def enable_compilation_cache(folder: str | None) -> None:
-    """Keep every compiled program that took over a second in ``folder`` (JAX's persistent
-    compilation cache), so a second call of a command with the same shapes loads its trackers
-    instead of compiling them again (7-16 s each on 2 cores)."""
+    """Keep every compiled program in ``folder`` (JAX's persistent compilation cache), so a
+    second call of a command with the same shapes loads its trackers instead of compiling them
+    again. The small programs too, not only the slow ones: what that saves is measured in
+    docs/testing.md, "Cold start"."""
     if folder is None:
         return
     import jax
 
     jax.config.update("jax_compilation_cache_dir", folder)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 
 def _report(command: str, err: BaseException) -> int:
