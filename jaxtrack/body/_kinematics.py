@@ -29,6 +29,13 @@ def _dof_slots(skeleton: Skeleton) -> np.ndarray:
     return np.asarray([d + [identity] * (width - len(d)) for d in per_joint], np.int32).reshape(skeleton.num_joints, width)
 
 
+def _compose(a: Float[Array, "*batch 3 3"], b: Float[Array, "*batch 3 3"]) -> Float[Array, "*batch 3 3"]:
+    """``a @ b`` for stacks of 3x3 matrices, as a sum of elementwise products: no dot product
+    for XLA to rewrite (its CPU compiler mis-shaped the batched 3x3 dot under ``vmap``: an HLO
+    verifier error in the batched-runs tests), and as cheap at this size."""
+    return jnp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
+
+
 def joint_local_rotations(skeleton: Skeleton, pose: Float[Array, "*batch dofs"]) -> Float[Array, "*batch joints 3 3"]:
     """Local rotation matrix of every joint's bone (the identity for a joint without dofs).
 
@@ -45,7 +52,7 @@ def joint_local_rotations(skeleton: Skeleton, pose: Float[Array, "*batch dofs"])
     slots = _dof_slots(skeleton)
     local = dofs[..., slots[:, 0], :, :]
     for s in range(1, slots.shape[1]):
-        local = local @ dofs[..., slots[:, s], :, :]
+        local = _compose(local, dofs[..., slots[:, s], :, :])
     return local
 
 
@@ -62,7 +69,7 @@ def global_rotation_matrices(
         elif j not in moved:
             world[j] = world[parent]
         else:
-            world[j] = world[parent] @ local[..., j, :, :]
+            world[j] = _compose(world[parent], local[..., j, :, :])
     return jnp.stack(world, axis=-3)
 
 

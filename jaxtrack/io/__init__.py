@@ -1,5 +1,6 @@
 """File input and output: multi-view sequence files (``.npz``) and motion capture (ASF/AMC, BVH,
-3-D joint arrays) in metres, world frame, Z up."""
+3-D joint arrays) in metres, world frame, Z up; 2-D keypoints as pose detectors write them
+(OpenPose, COCO), mapped onto the 15 HumanEva joints."""
 
 from ._asf_amc import AsfSkeleton as AsfSkeleton
 from ._asf_amc import amc_channels as amc_channels
@@ -11,6 +12,15 @@ from ._bvh import load_bvh as load_bvh
 from ._bvh import read_bvh as read_bvh
 from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
+from ._keypoints import KEYPOINT_LAYOUTS as KEYPOINT_LAYOUTS
+from ._keypoints import KeypointLayout as KeypointLayout
+from ._keypoints import check_keypoints as check_keypoints
+from ._keypoints import follow_person as follow_person
+from ._keypoints import get_keypoint_layout as get_keypoint_layout
+from ._keypoints import load_keypoints as load_keypoints
+from ._keypoints import read_coco_keypoints as read_coco_keypoints
+from ._keypoints import read_openpose_folder as read_openpose_folder
+from ._keypoints import save_keypoints as save_keypoints
 from ._mocap import MotionCapture as MotionCapture
 from ._mocap import MotionFileError as MotionFileError
 from ._output import OutputPathError as OutputPathError

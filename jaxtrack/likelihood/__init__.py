@@ -1,11 +1,12 @@
 """Observation likelihoods behind one interface (``AbstractLikelihood``): the bidirectional
 silhouette likelihood of paper 000 eq. 12 (dense, windowed, on sampled pixels, or at a coarser
-resolution), sums of likelihoods, plain functions, and the ground plane as a pose prior that
-multiplies any of them. ``LikelihoodRecipe`` and its registry name the likelihoods a test scene
-can be tracked with (``available_likelihoods()``)."""
+resolution), the robust reprojection likelihood of 2-D keypoint detections, sums of
+likelihoods, plain functions, and the ground plane as a pose prior that multiplies any of them.
+``LikelihoodRecipe`` and its registry name the likelihoods a test scene can be tracked with (``available_likelihoods()``)."""
 
 from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
+from ._base import ObservationPart as ObservationPart
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
 from ._body_calibration import BodyCalibration as BodyCalibration
@@ -20,6 +21,9 @@ from ._coarse import coarsen_likelihood as coarsen_likelihood
 from ._ground import GroundPlanePrior as GroundPlanePrior
 from ._ground import ground_clearance as ground_clearance
 from ._ground import make_ground_prior as make_ground_prior
+from ._keypoints import KeypointLikelihood as KeypointLikelihood
+from ._keypoints import joint_sigmas as joint_sigmas
+from ._keypoints import make_keypoint_likelihood as make_keypoint_likelihood
 from ._registry import DEFAULT_LIKELIHOOD as DEFAULT_LIKELIHOOD
 from ._registry import LikelihoodRecipe as LikelihoodRecipe
 from ._registry import SceneInputs as SceneInputs

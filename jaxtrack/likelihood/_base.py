@@ -70,6 +70,30 @@ class SumLikelihood(AbstractLikelihood):
         return total
 
 
+class ObservationPart(AbstractLikelihood):
+    """``term`` scoring one entry of a frame's observation dict: ``observation[key]``. What lets
+    independent cues with observations of their own (silhouettes, keypoints) be summed:
+    ``ObservationPart(silhouettes, "silhouettes") + ObservationPart(keypoints, "keypoints")``
+    on ``{"silhouettes": (C, H, W), "keypoints": (C, 15, 3)}`` frames."""
+
+    term: AbstractLikelihood
+    key: str = eqx.field(static=True)
+
+    def __check_init__(self):
+        if not isinstance(self.term, AbstractLikelihood):
+            raise TypeError(f"ObservationPart wraps an AbstractLikelihood, got {type(self.term).__name__}")
+
+    @property
+    def reads_observation(self) -> bool:  # a prior stays a prior
+        return self.term.reads_observation
+
+    def log_likelihood(self, poses, observation):
+        if not isinstance(observation, dict) or self.key not in observation:
+            raise TrackingError(f"ObservationPart({type(self.term).__name__}, {self.key!r}) needs a dict observation with the "
+                                f"entry {self.key!r}, got {type(observation).__name__}")
+        return self.term.log_likelihood(poses, observation[self.key])
+
+
 class FunctionLikelihood(AbstractLikelihood):
     """A plain function ``(poses (N, D), observation) -> (N,)`` as a likelihood (e.g. a
     Gaussian stand-in in tests). The function is static: closing over arrays you want to

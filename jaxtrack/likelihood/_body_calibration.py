@@ -139,6 +139,7 @@ def calibrate_body(
     pose_sd_m: float = 0.1,
     pose_sd_rad: float = 0.3,
     data_weight: float = 30.0,
+    max_cost: float | None = MAX_COST,
 ):
     """Fit the body's limb lengths and radii, and the frames' poses, to the first frames' images.
 
@@ -158,6 +159,9 @@ def calibrate_body(
         radius_sd: prior sd of each log radius around its start.
         pose_sd_m, pose_sd_rad: prior sds of the poses around their start.
         data_weight: the log-likelihood's weight against the priors (module docstring).
+        max_cost: the highest final cost (``-mean_f ln p / scale``) of a converged calibration,
+            on 000 eq. 12's scale (``MAX_COST``); None for a likelihood on another scale (the
+            keypoints' alone): then only a rising cost and implausible lengths are refused.
 
     Returns:
         ``(likelihood with the fitted body, fitted poses (F, D), BodyCalibration)``.
@@ -215,7 +219,8 @@ def calibrate_body(
     ratio = lengths_after / reference
     bad = [f"{n} {1000 * v:.0f} mm ({r:.2f} x the reference)" for n, v, r in zip(names, lengths_after, ratio)
            if not PLAUSIBLE_FACTOR[0] <= r <= PLAUSIBLE_FACTOR[1]]
-    if bad or after > before or after > MAX_COST:
+    too_high = max_cost is not None and after > max_cost
+    if bad or after > before or too_high:
         why = (f"limb lengths {', '.join(bad)}" if bad else f"its cost rose from {before:.3f} to {after:.3f}" if after > before
                else f"its cost ended at {after:.3f}: the body explains too little of the images (a fit reaches 0.1-0.3)")
         raise ConfigurationError(f"the body calibration did not converge ({why}): check the start pose, the cameras and the "

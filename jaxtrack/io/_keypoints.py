@@ -1,0 +1,243 @@
+"""2-D keypoints as pose detectors write them, mapped onto the library's 15 HumanEva joints.
+
+Layouts (``KEYPOINT_LAYOUTS``), each with its joint correspondence stated per HumanEva joint:
+
+- ``coco17`` (COCO, MMPose, RTMPose): nose, eyes, ears, shoulders, elbows, wrists, hips,
+  knees, ankles, left before right;
+- ``coco18`` (OpenPose's COCO model): nose, neck, then right before left;
+- ``body25`` (OpenPose BODY_25): ``coco18``'s first 8 with a mid-hip at 8, then the legs, the
+  face and six foot points;
+- ``body25b`` (OpenPose BODY_25B): ``coco17``, then upper neck, head top and six foot points;
+- ``halpe26`` (AlphaPose Halpe): ``coco17``, then head (top), neck, hip (mid) and six foot points.
+
+Shoulders, elbows, wrists, hips, knees and ankles are the detectors' own points. The pelvis is
+the detector's mid-hip where it has one, else the mean of its two hips (exact for our
+skeleton, whose pelvis is the hips' midpoint). The thorax is the neck point (``coco18``,
+``body25``, ``halpe26``; ``body25b``'s upper neck is higher, so its shoulders' mean) or the
+shoulders' mean (``coco17``): the HumanEva thorax sits between the shoulders. The head is the
+mean of the two ears (every layout has them; the head joint is the head's centre). These last
+two are approximate (``KeypointLayout.approximate``): a likelihood should trust them less.
+
+Readers: ``read_openpose_folder`` (one JSON file per frame, ``people[i].pose_keypoints_2d``
+as OpenPose writes; several people per frame: the one the tracker follows, see
+``follow_person``), ``read_coco_keypoints`` (a COCO results or annotations JSON, several images
+in frame order), and ``load_keypoints`` / ``save_keypoints`` (a documented ``.npz``:
+``keypoints`` (C, T, 15, 3) pixel u, v and confidence in [0, 1], ``camera_names`` (C,)). A
+missing joint has confidence 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+
+from ..body import HUMANEVA_JOINTS
+from ..errors import MotionFileError
+
+_COCO17 = ("nose", "leye", "reye", "lear", "rear", "lshoulder", "rshoulder", "lelbow", "relbow", "lwrist", "rwrist",
+           "lhip", "rhip", "lknee", "rknee", "lankle", "rankle")
+_COCO18 = ("nose", "neck", "rshoulder", "relbow", "rwrist", "lshoulder", "lelbow", "lwrist", "rhip", "rknee", "rankle",
+           "lhip", "lknee", "lankle", "reye", "leye", "rear", "lear")
+_BODY25 = ("nose", "neck", "rshoulder", "relbow", "rwrist", "lshoulder", "lelbow", "lwrist", "midhip", "rhip", "rknee",
+           "rankle", "lhip", "lknee", "lankle", "reye", "leye", "rear", "lear", "lbigtoe", "lsmalltoe", "lheel", "rbigtoe",
+           "rsmalltoe", "rheel")
+_BODY25B = _COCO17 + ("upperneck", "headtop", "lbigtoe", "lsmalltoe", "lheel", "rbigtoe", "rsmalltoe", "rheel")
+_HALPE26 = _COCO17 + ("headtop", "neck", "midhip", "lbigtoe", "rbigtoe", "lsmalltoe", "rsmalltoe", "lheel", "rheel")
+
+# HumanEva joint -> the detector points whose mean it is, in order of preference (the first
+# rule whose points the layout has wins).
+_RULES = {
+    "pelvis": (("midhip",), ("lhip", "rhip")),
+    "thorax": (("neck",), ("lshoulder", "rshoulder")),
+    "head": (("lear", "rear"),),
+}
+APPROXIMATE_JOINTS = ("thorax", "head")  # not a point any detector marks: see the module docstring
+
+
+@dataclasses.dataclass(frozen=True)
+class KeypointLayout:
+    """A detector's keypoint layout and its correspondence to the 15 HumanEva joints.
+
+    Attributes:
+        name: the layout's name (``KEYPOINT_LAYOUTS`` key).
+        names: (K,) the detector's points in its order.
+        sources: per HumanEva joint (``body.HUMANEVA_JOINTS`` order), the indices of the points
+            whose mean it is.
+        approximate: per HumanEva joint, whether the correspondence is approximate.
+    """
+
+    name: str
+    names: tuple[str, ...]
+    sources: tuple[tuple[int, ...], ...]
+    approximate: tuple[bool, ...]
+
+    @property
+    def num_points(self) -> int:
+        return len(self.names)
+
+    def to_humaneva(self, keypoints: np.ndarray) -> np.ndarray:
+        """(..., K, 3) detector points (u, v, confidence) -> (..., 15, 3) HumanEva joints: the
+        mean position of each joint's points, confidence the least of theirs (0 if any is
+        missing, and then the position 0)."""
+        keypoints = np.asarray(keypoints, np.float64)
+        if keypoints.shape[-2:] != (self.num_points, 3):
+            raise ValueError(f"{self.name} keypoints must be (..., {self.num_points}, 3), got {keypoints.shape}")
+        out = np.zeros(keypoints.shape[:-2] + (len(self.sources), 3))
+        for j, points in enumerate(self.sources):
+            chosen = keypoints[..., points, :]
+            confidence = np.min(chosen[..., 2], axis=-1)
+            out[..., j, :2] = np.where(confidence[..., None] > 0, np.mean(chosen[..., :2], axis=-2), 0.0)
+            out[..., j, 2] = confidence
+        return out
+
+
+def _layout(name: str, names: tuple[str, ...]) -> KeypointLayout:
+    index = {n: i for i, n in enumerate(names)}
+    sources = []
+    for joint in HUMANEVA_JOINTS:
+        rules = _RULES.get(joint, ((joint,),))
+        rule = next(r for r in rules if all(n in index for n in r))
+        sources.append(tuple(index[n] for n in rule))
+    if name == "body25b":  # its upper neck sits above the thorax: the shoulders' mean instead
+        sources[HUMANEVA_JOINTS.index("thorax")] = (index["lshoulder"], index["rshoulder"])
+    return KeypointLayout(name, names, tuple(sources), tuple(j in APPROXIMATE_JOINTS for j in HUMANEVA_JOINTS))
+
+
+KEYPOINT_LAYOUTS: dict[str, KeypointLayout] = {
+    name: _layout(name, names)
+    for name, names in (("coco17", _COCO17), ("coco18", _COCO18), ("body25", _BODY25), ("body25b", _BODY25B),
+                        ("halpe26", _HALPE26))
+}
+
+
+def get_keypoint_layout(name: str) -> KeypointLayout:
+    """The layout named ``name``; raises ``ValueError`` listing the known ones."""
+    if name not in KEYPOINT_LAYOUTS:
+        raise ValueError(f"unknown keypoint layout {name!r}; known: {', '.join(KEYPOINT_LAYOUTS)}")
+    return KEYPOINT_LAYOUTS[name]
+
+
+def follow_person(frames: list[np.ndarray]) -> np.ndarray:
+    """One person per frame from each frame's (P_t, K, 3) detections: at the first frame with
+    anyone, the most confident (mean confidence); then the one whose confident points are
+    nearest (mean pixel distance) to the last chosen; a frame with nobody gives zeros
+    (confidence 0). Returns (T, K, 3)."""
+    sizes = [f.shape[1] for f in frames if f.shape[0]]
+    if not sizes:
+        raise ValueError("no person is detected in any frame")
+    out = np.zeros((len(frames), sizes[0], 3))
+    last = None
+    for t, people in enumerate(frames):
+        if not people.shape[0]:
+            continue
+        if last is None:
+            choice = int(np.argmax(people[:, :, 2].mean(axis=1)))
+        else:
+            both = (people[:, :, 2] > 0) & (last[None, :, 2] > 0)
+            distance = np.linalg.norm(people[:, :, :2] - last[None, :, :2], axis=-1)
+            mean = np.where(both.any(axis=1), np.sum(np.where(both, distance, 0.0), axis=1) / np.maximum(both.sum(axis=1), 1), np.inf)
+            choice = int(np.argmin(mean)) if np.isfinite(mean).any() else int(np.argmax(people[:, :, 2].mean(axis=1)))
+        out[t] = people[choice]
+        last = out[t]
+    return out
+
+
+def _points(values, count: int, where: str, line_of: str) -> np.ndarray:
+    array = np.asarray(values, np.float64).reshape(-1) if isinstance(values, list) else None
+    if array is None or array.size != 3 * count:
+        raise MotionFileError(where, None, f"{line_of}: expected {3 * count} numbers (u, v, confidence for {count} points), "
+                                           f"got {array.size if array is not None else type(values).__name__}")
+    if not np.all(np.isfinite(array)):
+        raise MotionFileError(where, None, f"{line_of}: NaN or infinite values")
+    return array.reshape(count, 3)
+
+
+def read_openpose_folder(folder: str | os.PathLike, layout: str = "body25") -> np.ndarray:
+    """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
+    (T, 15, 3) HumanEva joints in pixels with confidences, following one person
+    (``follow_person``)."""
+    layout_ = get_keypoint_layout(layout)
+    folder = os.fspath(folder)
+    names = sorted(n for n in os.listdir(folder) if n.endswith(".json"))
+    if not names:
+        raise MotionFileError(folder, None, "no .json keypoint files in the folder")
+    frames = []
+    for name in names:
+        path = os.path.join(folder, name)
+        try:
+            with open(path) as handle:
+                data = json.load(handle)
+        except json.JSONDecodeError as err:
+            raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
+        people = data.get("people") if isinstance(data, dict) else None
+        if not isinstance(people, list):
+            raise MotionFileError(path, None, "no 'people' list (an OpenPose keypoint file has one per frame)")
+        frames.append(np.stack([_points(p.get("pose_keypoints_2d") if isinstance(p, dict) else None, layout_.num_points, path,
+                                        f"people[{i}].pose_keypoints_2d ({layout})") for i, p in enumerate(people)])
+                      if people else np.zeros((0, layout_.num_points, 3)))
+    return layout_.to_humaneva(follow_person(frames))
+
+
+def read_coco_keypoints(path: str | os.PathLike, layout: str = "coco17", *, images=None) -> np.ndarray:
+    """A COCO keypoint JSON (a results list, or a dict with ``annotations`` and ``images``) of
+    one camera -> (T, 15, 3): frames are the image ids in ascending order (or ``images``, ids in
+    frame order), one person followed through them; a detection's ``score`` scales its points'
+    visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1)."""
+    layout_ = get_keypoint_layout(layout)
+    path = os.fspath(path)
+    try:
+        with open(path) as handle:
+            data = json.load(handle)
+    except json.JSONDecodeError as err:
+        raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
+    annotations = data.get("annotations") if isinstance(data, dict) else data
+    if not isinstance(annotations, list):
+        raise MotionFileError(path, None, "expected a list of detections or a dict with 'annotations'")
+    by_image: dict = {}
+    for i, item in enumerate(annotations):
+        if not isinstance(item, dict) or "image_id" not in item:
+            raise MotionFileError(path, None, f"detection {i}: needs 'image_id' and 'keypoints'")
+        points = _points(item.get("keypoints"), layout_.num_points, path, f"detection {i} keypoints ({layout})")
+        visible = points[:, 2]
+        if "score" not in item:  # annotations: visibility flags 0, 1, 2
+            visible = visible / 2.0
+        points[:, 2] = np.clip(visible * float(item.get("score", 1.0)), 0.0, 1.0)
+        by_image.setdefault(item["image_id"], []).append(points)
+    order = list(images) if images is not None else sorted(by_image)
+    frames = [np.stack(by_image[i]) if i in by_image else np.zeros((0, layout_.num_points, 3)) for i in order]
+    return layout_.to_humaneva(follow_person(frames))
+
+
+def save_keypoints(path: str | os.PathLike, keypoints, camera_names) -> None:
+    """Write (C, T, 15, 3) HumanEva keypoints (pixels u, v and confidence) with the cameras'
+    names as the documented ``.npz``."""
+    keypoints = check_keypoints(keypoints, len(camera_names), where=os.fspath(path))
+    np.savez(path, keypoints=keypoints, camera_names=np.asarray([str(n) for n in camera_names]))
+
+
+def load_keypoints(path: str | os.PathLike) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Read a keypoint ``.npz`` (``save_keypoints``): ``(keypoints (C, T, 15, 3), camera names)``."""
+    where = os.fspath(path)
+    with np.load(path, allow_pickle=False) as data:
+        missing = [k for k in ("keypoints", "camera_names") if k not in data]
+        if missing:
+            raise MotionFileError(where, None, f"missing key(s) {', '.join(missing)} (a keypoint file has keypoints and camera_names)")
+        names = tuple(str(n) for n in data["camera_names"])
+        return check_keypoints(data["keypoints"], len(names), where=where), names
+
+
+def check_keypoints(keypoints, num_views: int, *, where: str = "keypoints") -> np.ndarray:
+    """(C, T, 15, 3) finite float64 keypoints with confidences in [0, 1]; raises
+    ``MotionFileError`` naming ``where`` otherwise."""
+    array = np.asarray(keypoints, np.float64)
+    if array.ndim != 4 or array.shape[0] != num_views or array.shape[2:] != (len(HUMANEVA_JOINTS), 3):
+        raise MotionFileError(where, None, f"keypoints must be (views={num_views}, frames, {len(HUMANEVA_JOINTS)}, 3), got "
+                                           f"{array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise MotionFileError(where, None, "keypoints contain NaN or infinite values")
+    if np.any(array[..., 2] < 0) or np.any(array[..., 2] > 1):
+        raise MotionFileError(where, None, "keypoint confidences must lie in [0, 1]")
+    return array

@@ -1,0 +1,170 @@
+"""2-D keypoints: the detector layouts' joint correspondence, the OpenPose and COCO readers (one
+person followed among several), the keypoint file, and the reprojection likelihood against a
+NumPy reference, at its maximum at the true pose, and its gradient against finite differences."""
+
+import json
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxtrack.body import HUMANEVA_JOINTS, forward_kinematics, humaneva_body
+from jaxtrack.camera import default_rig, project_points
+from jaxtrack.errors import ConfigurationError, MotionFileError, TrackingError
+from jaxtrack.io import (
+    KEYPOINT_LAYOUTS,
+    follow_person,
+    get_keypoint_layout,
+    load_keypoints,
+    read_coco_keypoints,
+    read_openpose_folder,
+    save_keypoints,
+)
+from jaxtrack.likelihood import ObservationPart, make_keypoint_likelihood
+
+J = {name: i for i, name in enumerate(HUMANEVA_JOINTS)}
+
+
+def test_each_layout_maps_its_points_onto_the_humaneva_joints():
+    for name, layout in KEYPOINT_LAYOUTS.items():
+        points = np.zeros((layout.num_points, 3))
+        points[:, 0] = np.arange(layout.num_points)  # u = the point's index
+        points[:, 2] = 1.0
+        joints = layout.to_humaneva(points)
+        index = {n: i for i, n in enumerate(layout.names)}
+        for joint in ("lshoulder", "relbow", "lwrist", "rhip", "lknee", "rankle"):
+            assert joints[J[joint], 0] == index[joint], (name, joint)
+        assert joints[J["head"], 0] == (index["lear"] + index["rear"]) / 2
+        pelvis = index["midhip"] if "midhip" in index else (index["lhip"] + index["rhip"]) / 2
+        assert joints[J["pelvis"], 0] == pelvis
+        thorax = index["neck"] if ("neck" in index and name != "body25b") else (index["lshoulder"] + index["rshoulder"]) / 2
+        assert joints[J["thorax"], 0] == thorax
+        assert layout.approximate[J["head"]] and not layout.approximate[J["lknee"]]
+    # the layouts as their tools number them
+    assert KEYPOINT_LAYOUTS["body25"].names[8] == "midhip" and KEYPOINT_LAYOUTS["body25"].names[24] == "rheel"
+    assert KEYPOINT_LAYOUTS["coco18"].names[1] == "neck" and KEYPOINT_LAYOUTS["coco18"].names[2] == "rshoulder"
+    assert KEYPOINT_LAYOUTS["halpe26"].names[17:20] == ("headtop", "neck", "midhip")
+    assert KEYPOINT_LAYOUTS["body25b"].names[17:19] == ("upperneck", "headtop")
+    # a joint made of a missing point is missing, position zero
+    points = np.ones((17, 3))
+    points[3, 2] = 0.0  # left ear
+    joints = get_keypoint_layout("coco17").to_humaneva(points)
+    assert joints[J["head"], 2] == 0 and np.all(joints[J["head"], :2] == 0) and joints[J["pelvis"], 2] == 1
+    with pytest.raises(ValueError, match="unknown keypoint layout"):
+        get_keypoint_layout("body135")
+
+
+def test_the_person_followed_is_the_one_nearest_the_last():
+    a = np.concatenate([np.full((3, 2), 10.0), np.ones((3, 1))], axis=1)
+    b = np.concatenate([np.full((3, 2), 50.0), np.full((3, 1), 0.9)], axis=1)
+    frames = [np.stack([b, a]), np.stack([a + 1, b + 1]), np.zeros((0, 3, 3)), np.stack([b - 1, a + 2])]
+    chosen = follow_person(frames)  # a is the most confident at the start, then followed
+    np.testing.assert_allclose(chosen[:, 0, 0], [10, 11, 0, 12])
+    assert chosen[2, 0, 2] == 0
+
+
+def test_openpose_and_coco_files_read_back(tmp_path):
+    layout = get_keypoint_layout("body25")
+    rng = np.random.default_rng(0)
+    truth = np.concatenate([rng.uniform(0, 80, (3, 25, 2)), np.ones((3, 25, 1))], axis=2)
+    folder = tmp_path / "cam1"
+    folder.mkdir()
+    for t in range(3):
+        stranger = truth[t].copy()
+        stranger[:, :2] += 200.0
+        stranger[:, 2] = 0.5
+        people = [{"pose_keypoints_2d": stranger.ravel().tolist()}, {"pose_keypoints_2d": truth[t].ravel().tolist()}]
+        (folder / f"video_{t:012d}_keypoints.json").write_text(json.dumps({"version": 1.3, "people": people}))
+    read = read_openpose_folder(folder, "body25")
+    np.testing.assert_allclose(read, layout.to_humaneva(truth))
+    (folder / "video_000000000003_keypoints.json").write_text('{"people": [{"pose_keypoints_2d": [1, 2]}]}')
+    with pytest.raises(MotionFileError, match="expected 75 numbers"):
+        read_openpose_folder(folder, "body25")
+
+    coco = get_keypoint_layout("coco17")
+    points = np.concatenate([rng.uniform(0, 80, (2, 17, 2)), np.full((2, 17, 1), 2.0)], axis=2)
+    annotations = [{"image_id": 7 + t, "keypoints": points[t].ravel().tolist()} for t in range(2)]
+    path = tmp_path / "coco.json"
+    path.write_text(json.dumps({"annotations": annotations, "images": [{"id": 7}, {"id": 8}]}))
+    expected = points.copy()
+    expected[..., 2] = 1.0  # visibility 2 -> confidence 1
+    np.testing.assert_allclose(read_coco_keypoints(path), coco.to_humaneva(expected))
+
+    keypoints = np.stack([read, read])
+    save_keypoints(tmp_path / "k.npz", keypoints, ["C1", "C2"])
+    loaded, names = load_keypoints(tmp_path / "k.npz")
+    np.testing.assert_array_equal(loaded, keypoints)
+    assert names == ("C1", "C2")
+    with pytest.raises(MotionFileError, match="confidences must lie in"):
+        save_keypoints(tmp_path / "bad.npz", keypoints * 2, ["C1", "C2"])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    body = humaneva_body(dtype=jnp.float64)
+    rig = default_rig(160, 120, dtype=jnp.float64)
+    pose = jnp.asarray(body.skeleton.zero_pose()).at[2].set(0.95).at[8].set(0.3).at[21].set(0.4)
+    uv, _, _ = project_points(rig, forward_kinematics(body.skeleton, pose))  # (15, C, 2)
+    keypoints = jnp.concatenate([jnp.swapaxes(uv, 0, 1), jnp.ones((4, 15, 1))], axis=-1)  # (C, 15, 3)
+    return body, rig, pose, keypoints
+
+
+def _numpy_reference(body, rig, poses, keypoints, sigmas, robust):
+    out = []
+    for pose in np.asarray(poses):
+        uv, _, _ = project_points(rig, forward_kinematics(body.skeleton, jnp.asarray(pose)))
+        uv = np.swapaxes(np.asarray(uv), 0, 1)
+        total = 0.0
+        for c in range(uv.shape[0]):
+            for j in range(15):
+                s = np.sum((uv[c, j] - keypoints[c, j, :2]) ** 2) / sigmas[j] ** 2
+                total -= keypoints[c, j, 2] * (np.log1p(s / 2) if robust == "cauchy" else s / 2)
+        out.append(total)
+    return np.asarray(out)
+
+
+def test_the_keypoint_likelihood_matches_numpy_peaks_at_the_truth_and_has_the_right_gradient(scene):
+    with jax.enable_x64(True):
+        body, rig, pose, keypoints = scene
+        rng = np.random.default_rng(1)
+        noisy = np.asarray(keypoints).copy()
+        noisy[..., :2] += rng.normal(0, 3, noisy[..., :2].shape)
+        noisy[..., 2] = rng.uniform(0, 1, noisy[..., 2].shape)
+        noisy[1, 4, 2] = 0.0  # a missing joint
+        poses = pose + 0.05 * jnp.asarray(rng.normal(size=(5, pose.shape[0])))
+        for robust in ("cauchy", "gaussian"):
+            likelihood = make_keypoint_likelihood(body, rig, sigma_px=4.0, robust=robust, dtype=jnp.float64)
+            np.testing.assert_allclose(likelihood(poses, jnp.asarray(noisy)),
+                                       _numpy_reference(body, rig, poses, noisy, np.asarray(likelihood.sigmas), robust), rtol=1e-9)
+        likelihood = make_keypoint_likelihood(body, rig, dtype=jnp.float64)
+        values = likelihood(jnp.concatenate([pose[None], poses]), keypoints)
+        assert values[0] == 0.0 and np.all(values[1:] < 0)
+        # a missing joint does not count: moving only the left wrist's detection changes nothing
+        moved = keypoints.at[:, J["lwrist"], :2].add(30.0).at[:, J["lwrist"], 2].set(0.0)
+        np.testing.assert_allclose(likelihood(poses, moved), likelihood(poses, keypoints.at[:, J["lwrist"], 2].set(0.0)))
+        # read from a dict, to be summed with another cue
+        keyed = ObservationPart(likelihood, "keypoints")
+        assert keyed.reads_observation
+        np.testing.assert_allclose(keyed(poses, {"keypoints": keypoints, "silhouettes": jnp.zeros(3)}), likelihood(poses, keypoints))
+        with pytest.raises(TrackingError, match="needs a dict observation"):
+            keyed(poses, keypoints)
+        # gradient against central finite differences
+        f = lambda p: likelihood(p[None], jnp.asarray(noisy))[0]  # noqa: E731
+        x = poses[0]
+        grad = jax.grad(f)(x)
+        eps = 1e-6
+        numeric = np.asarray([(f(x.at[i].add(eps)) - f(x.at[i].add(-eps))) / (2 * eps) for i in range(x.shape[0])])
+        np.testing.assert_allclose(grad, numeric, rtol=1e-5, atol=1e-6)
+        # jit against no jit
+        jitted = eqx.filter_jit(lambda lik, p, k: lik(p, k))
+        np.testing.assert_allclose(jitted(likelihood, poses, keypoints), likelihood(poses, keypoints), rtol=1e-12)
+
+
+def test_bad_keypoint_likelihood_settings_are_refused(scene):
+    body, rig, _, _ = scene
+    with pytest.raises(ConfigurationError, match="sigma_px"):
+        make_keypoint_likelihood(body, rig, sigma_px=0.0)
+    with pytest.raises(ConfigurationError, match="robust"):
+        make_keypoint_likelihood(body, rig, robust="huber")
