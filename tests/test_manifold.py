@@ -382,7 +382,7 @@ def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     assert info.steps == 6 and float(fitted.objective()) == pytest.approx(float(reference.objective()), rel=1e-12)
     assert make_manifold_prior(make_bc_gplvm(Y, 2), 32).has_back_constraint
     assert not make_manifold_prior(make_gplvm(Y, 2), 32).has_back_constraint
-    with pytest.raises(TypeError, match="AbstractManifold subclass"):
+    with pytest.raises(TypeError, match="AbstractSaveableManifold subclass"):
         register_manifold(dict)
     with pytest.raises(TypeError, match="needs a fitted AbstractManifold"):
         make_manifold_prior(fit_pca(Y, 2), 32)
