@@ -82,6 +82,9 @@ def test_openpose_and_coco_files_read_back(tmp_path):
     (folder / "video_000000000003_keypoints.json").write_text('{"people": [{"pose_keypoints_2d": [1, 2]}]}')
     with pytest.raises(MotionFileError, match="expected 75 numbers"):
         read_openpose_folder(folder, "body25")
+    (folder / "video_000000000003_keypoints.json").write_text('{"people":\n [1, 2,,]}')
+    with pytest.raises(MotionFileError, match=r"_keypoints.json:2: not JSON"):
+        read_openpose_folder(folder, "body25")
 
     coco = get_keypoint_layout("coco17")
     points = np.concatenate([rng.uniform(0, 80, (2, 17, 2)), np.full((2, 17, 1), 2.0)], axis=2)

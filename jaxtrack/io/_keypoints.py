@@ -155,6 +155,15 @@ def _points(values, count: int, where: str, line_of: str) -> np.ndarray:
     return array.reshape(count, 3)
 
 
+def _read_json(path: str):
+    """A JSON file's contents; ``MotionFileError`` with the line where it is not JSON."""
+    try:
+        with open(path) as handle:
+            return json.load(handle)
+    except json.JSONDecodeError as err:
+        raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
+
+
 def read_openpose_folder(folder: str | os.PathLike, layout: str = "body25") -> np.ndarray:
     """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
     (T, 15, 3) HumanEva joints in pixels with confidences, following one person
@@ -167,11 +176,7 @@ def read_openpose_folder(folder: str | os.PathLike, layout: str = "body25") -> n
     frames = []
     for name in names:
         path = os.path.join(folder, name)
-        try:
-            with open(path) as handle:
-                data = json.load(handle)
-        except json.JSONDecodeError as err:
-            raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
+        data = _read_json(path)
         people = data.get("people") if isinstance(data, dict) else None
         if not isinstance(people, list):
             raise MotionFileError(path, None, "no 'people' list (an OpenPose keypoint file has one per frame)")
@@ -188,11 +193,7 @@ def read_coco_keypoints(path: str | os.PathLike, layout: str = "coco17", *, imag
     visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1)."""
     layout_ = get_keypoint_layout(layout)
     path = os.fspath(path)
-    try:
-        with open(path) as handle:
-            data = json.load(handle)
-    except json.JSONDecodeError as err:
-        raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
+    data = _read_json(path)
     annotations = data.get("annotations") if isinstance(data, dict) else data
     if not isinstance(annotations, list):
         raise MotionFileError(path, None, "expected a list of detections or a dict with 'annotations'")
