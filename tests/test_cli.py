@@ -36,6 +36,7 @@ def test_render_reports_bad_files(tmp_path, capsys):
     assert "neither silhouettes nor images" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_commands_refuse_to_write_over_their_inputs_before_any_work(tmp_path, capsys, monkeypatch):
     """``track T.npz --out T.npz`` used to replace the ground truth with estimates under the same
     keys, ``fit X.npz --out X.npz`` the training data with the model: refused, by any name of

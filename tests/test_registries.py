@@ -129,6 +129,7 @@ def test_option_strings_are_parsed_as_their_defaults_types():
         _options(["n"], {"n": 1}, "t")
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_fit_and_experiment_fit_the_same_model(tmp_path):
     """``jaxtrack fit`` and the experiment's ``tracking.fit_manifold`` are one fit: the same
     maker, optimiser, steps and key give the same parameters."""
