@@ -84,11 +84,58 @@ def _scene(args) -> int:
     sequence = load_sequence(args.source)
     rig = default_rig(args.width, args.height, num_views=args.views)
     noise = NO_NOISE if args.clean else SilhouetteNoise()
+    detector = None
+    if args.keypoints:
+        from .data import DetectorNoise, detect_keypoints
+
+        detector = DetectorNoise(noise_px=args.keypoint_noise, dropped=args.keypoint_dropped, swapped=args.keypoint_swapped)
     scene = scene_from_sequence(jax.random.key(args.seed), sequence, rig, noise, start=args.start, frames=args.frames,
                                 centre=not args.no_centre, progress=True)
+    if detector is not None:
+        scene = scene.replace(keypoints2d=detect_keypoints(jax.random.fold_in(jax.random.key(args.seed), 1), scene.joints3d,
+                                                           scene.rig(), detector))
     save_sequence(args.out, scene)
     print(f"wrote {args.out}: {scene.num_frames} frames at {scene.fps:g} Hz in {args.views} "
-          f"{'clean' if args.clean else 'noisy'} {args.width}x{args.height} silhouette views")
+          f"{'clean' if args.clean else 'noisy'} {args.width}x{args.height} silhouette views"
+          + ("" if detector is None else f", with 2-D keypoints ({detector.noise_px:g} px noise, {detector.dropped:.0%} dropped, "
+                                         f"{detector.swapped:.0%} of views' frames left-right swapped)"))
+    return 0
+
+
+def _keypoints(args) -> int:
+    from .io import check_output, load_keypoints, load_sequence, read_coco_keypoints, read_openpose_folder, save_sequence
+
+    args.out = check_output(args.out, [args.sequence, *args.sources], suffix=".npz")
+    sequence = load_sequence(args.sequence)
+    if not sequence.has_cameras:
+        raise ValueError(f"{args.sequence}: has no cameras; 2-D keypoints are read per camera")
+    views = len(sequence.image_size)
+    if args.format == "npz":
+        if len(args.sources) != 1:
+            raise ValueError("--format npz reads one file holding every camera's keypoints")
+        keypoints, names = load_keypoints(args.sources[0])
+        if sequence.camera_names is not None and tuple(names) != tuple(str(n) for n in sequence.camera_names):
+            raise ValueError(f"{args.sources[0]}: cameras {list(names)}, but {args.sequence} has {list(sequence.camera_names)}")
+    else:
+        if len(args.sources) != views:
+            raise ValueError(f"{args.sequence} has {views} cameras: give one {args.format} source per camera, in its order "
+                             f"(got {len(args.sources)})")
+        read = read_openpose_folder if args.format == "openpose" else read_coco_keypoints
+        layout = args.layout or ("body25" if args.format == "openpose" else "coco17")
+        per_view = [read(source, layout) for source in args.sources]
+        frames = {len(k) for k in per_view}
+        if len(frames) != 1:
+            raise ValueError("the cameras' keypoint sources hold different numbers of frames: "
+                             + ", ".join(f"{s} {len(k)}" for s, k in zip(args.sources, per_view)))
+        import numpy as np
+
+        keypoints = np.stack(per_view)
+    if keypoints.shape[1] != sequence.num_frames:
+        raise ValueError(f"the keypoints hold {keypoints.shape[1]} frames, {args.sequence} {sequence.num_frames}")
+    save_sequence(args.out, sequence.replace(keypoints2d=keypoints))
+    seen = float((keypoints[..., 2] > 0).mean())
+    print(f"wrote {args.out}: {args.sequence} with 2-D keypoints of {views} cameras x {keypoints.shape[1]} frames "
+          f"({seen:.0%} of the joints detected)")
     return 0
 
 
@@ -403,7 +450,30 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument("--clean", action="store_true", help="no background-subtraction noise")
     scene.add_argument("--no-centre", action="store_true", help="keep the recorded floor position (default: centre the path)")
     scene.add_argument("--seed", type=int, default=0, help="PRNG seed of the silhouette noise (default: %(default)s)")
+    scene.add_argument("--keypoints", action="store_true",
+                       help="also write synthetic 2-D keypoint detections (keypoints2d): the true joints projected, with noise")
+    scene.add_argument("--keypoint-noise", type=float, default=5.0, metavar="PX",
+                       help="their Gaussian pixel noise (default: %(default)s)")
+    scene.add_argument("--keypoint-dropped", type=float, default=0.1, metavar="P",
+                       help="the probability that a joint is missing (default: %(default)s)")
+    scene.add_argument("--keypoint-swapped", type=float, default=0.0, metavar="P",
+                       help="the probability that a view's frame has left and right exchanged (default: %(default)s)")
     scene.set_defaults(run=_scene)
+
+    from .io import KEYPOINT_LAYOUTS
+
+    keypoints = sub.add_parser("keypoints", help="add a 2-D pose detector's keypoints (OpenPose, COCO JSON) to a sequence file")
+    keypoints.add_argument("sequence", help="a sequence file with cameras")
+    keypoints.add_argument("out", help="output sequence file (.npz): the same with keypoints2d")
+    keypoints.add_argument("sources", nargs="+",
+                           help="per camera, in the file's camera order: an OpenPose output folder (one *_keypoints.json per "
+                                "frame) or a COCO keypoint JSON; or one keypoint .npz of every camera (--format npz)")
+    keypoints.add_argument("--format", choices=("openpose", "coco", "npz"), default="openpose",
+                           help="what the sources are (default: %(default)s)")
+    keypoints.add_argument("--layout", choices=tuple(KEYPOINT_LAYOUTS),
+                           help="the detector's keypoint layout (default: body25 for OpenPose, coco17 for COCO JSON as MMPose "
+                                "and RTMPose write it)")
+    keypoints.set_defaults(run=_keypoints)
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")

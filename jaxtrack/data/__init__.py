@@ -1,5 +1,7 @@
 """Embedded synthetic data: procedural gait for synthetic subjects, and multi-view scenes."""
 
+from ._detections import DetectorNoise as DetectorNoise
+from ._detections import detect_keypoints as detect_keypoints
 from ._gait import ANKLE_HEIGHT as ANKLE_HEIGHT
 from ._gait import GAITS as GAITS
 from ._gait import SUBJECTS as SUBJECTS

@@ -82,8 +82,7 @@ def write_outputs(results: dict, test, test_names, out_dir: str, *, animations: 
             best = min(per_method, key=lambda m: per_method[m]["error_mm_mean"])
             joints = results["estimates"][name][best][1]
             frames = joints.shape[0]
-            clipped = seq.replace(silhouettes=seq.silhouettes[:, :frames], images=None,
-                                  joints3d=None if seq.joints3d is None else seq.joints3d[:frames], pose=None, pose_layout=None)
+            clipped = seq.cropped(min(frames, seq.num_frames)).replace(images=None, pose=None, pose_layout=None)
             stem = os.path.splitext(os.path.basename(name))[0].replace(" ", "_")
             paths[f"animation {name}"] = animation(clipped, os.path.join(out_dir, f"{stem}_{best}.gif"), estimate=joints, every=2)
     return paths

@@ -20,7 +20,7 @@ import numpy as np
 from ..body import part_group_indices
 from ..evaluation import mean_joint_error_mm, per_frame_error_mm, per_group_error_mm
 from ..image import downsample_silhouettes
-from ..likelihood import suggest_window
+from ..likelihood import get_likelihood, suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
     add_ground_prior,
@@ -88,6 +88,8 @@ def manifold_label(kind: str, latent_dim: int) -> str:
 def shared_window(test, frames, resolution=None):
     """One likelihood window for all test sequences when their images agree in size, so each
     tracker compiles once (the window is a static shape); "auto" (per sequence) otherwise."""
+    if any(s.silhouettes is None for s in test):
+        return "auto"
     sizes = {tuple(np.asarray(s.silhouettes.shape[-2:])) for s in test}
     if len(sizes) != 1:
         return "auto"
@@ -154,8 +156,9 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     if not train or not validation or not test:
         raise ValueError("the experiment needs at least one training, one validation and one test sequence")
     ik_key = jax.random.key(config.seed)
+    observes = get_likelihood(config.likelihood).observes
     for seq, name in zip(test, test_names):
-        check_test_sequence(seq, name)
+        check_test_sequence(seq, name, observes)
     check_frame_rates([*train, *validation, *test], [*train_names, *validation_names, *test_names])
     # The training and validation takes' bodies and poses: each its own skeleton (the file's, or
     # the one inverse kinematics fits to its joints).

@@ -22,6 +22,10 @@ image_size        (C, 2), int            (width, height) in pixels
 camera_names      (C,), str              camera names
 silhouettes       (C, T, H, W), uint8    0/1 or 0/255 foreground masks
 images            (C, T, H, W, 3), uint8 RGB frames
+keypoints2d       (C, T, 15, 3), float   2-D detections of the 15 HumanEva joints per view:
+                                         pixels (u, v) and a confidence in [0, 1] (0: missing);
+                                         ``io.read_openpose_folder`` and ``io.read_coco_keypoints``
+                                         convert what detectors write
 ================  =====================  ===================================================
 
 Writing one from another tool::
@@ -58,6 +62,7 @@ ARRAY_KEYS = (
     "camera_names",
     "silhouettes",
     "images",
+    "keypoints2d",
 )
 CAMERA_KEYS = ("camera_K", "camera_R", "camera_t", "camera_dist", "image_size", "camera_names")
 
@@ -95,6 +100,7 @@ class Sequence:
     camera_names: np.ndarray | None = None
     silhouettes: np.ndarray | None = None
     images: np.ndarray | None = None
+    keypoints2d: np.ndarray | None = None
 
     @classmethod
     def create(cls, **fields) -> Sequence:
@@ -110,7 +116,8 @@ class Sequence:
     def resized(self, width: int, height: int) -> Sequence:
         """The sequence at a lower image resolution: silhouettes block-averaged (see
         ``jaxtrack.image.downsample_silhouettes``), intrinsics rescaled with pixel centres kept
-        (``CameraRig.resized``), images dropped; ``width`` and ``height`` must divide the size."""
+        (``CameraRig.resized``), keypoints moved with the pixels, images dropped; ``width`` and
+        ``height`` must divide the size."""
         import numpy as np
 
         from ..image import downsample_silhouettes
@@ -119,8 +126,15 @@ class Sequence:
             raise SequenceFileError("the sequence has no cameras to resize")
         rig = self.rig(dtype=np.float64).resized(width, height)
         silhouettes = None if self.silhouettes is None else downsample_silhouettes(self.silhouettes, width, height)
+        keypoints = None
+        if self.keypoints2d is not None:  # pixel centres at integer coordinates, as the intrinsics
+            scale = np.asarray([width, height], np.float64) / np.asarray(self.image_size, np.float64)  # (C, 2)
+            keypoints = self.keypoints2d.copy()
+            moved = (keypoints[..., :2] + 0.5) * scale[:, None, None, :] - 0.5
+            keypoints[..., :2] = np.where(keypoints[..., 2:] > 0, moved, keypoints[..., :2])  # missing ones stay put
         return self.replace(
             camera_K=np.asarray(rig.K), image_size=np.asarray(rig.image_size), silhouettes=silhouettes, images=None,
+            keypoints2d=keypoints,
         )
 
     def cropped(self, frames: int) -> Sequence:
@@ -128,7 +142,8 @@ class Sequence:
         if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= self.num_frames:
             raise SequenceFileError(f"cannot crop a sequence of {self.num_frames} frames to {frames!r}")
         cut = {key: getattr(self, key)[:frames] for key in ("joints3d", "pose") if getattr(self, key) is not None}
-        cut.update({key: getattr(self, key)[:, :frames] for key in ("silhouettes", "images") if getattr(self, key) is not None})
+        cut.update({key: getattr(self, key)[:, :frames] for key in ("silhouettes", "images", "keypoints2d")
+                    if getattr(self, key) is not None})
         return self.replace(**cut)
 
     @property
@@ -137,7 +152,7 @@ class Sequence:
             value = getattr(self, key)
             if value is not None:
                 return int(value.shape[0])
-        for key in ("silhouettes", "images"):
+        for key in ("silhouettes", "images", "keypoints2d"):
             value = getattr(self, key)
             if value is not None:
                 return int(value.shape[1])
@@ -417,4 +432,13 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
                 if arr.shape[2:4] != (h, w):
                     _fail(source, key, f"camera {c} frames are {arr.shape[3]}x{arr.shape[2]} (width x height) but image_size says {w}x{h}")
         out[key] = arr
+    if "keypoints2d" in f:
+        keypoints = _as_float(source, "keypoints2d", f["keypoints2d"], 4, (15, 3))
+        confidence = keypoints[..., 2]
+        if np.any(confidence < 0) or np.any(confidence > 1):
+            bad = tuple(int(i) for i in np.argwhere((confidence < 0) | (confidence > 1))[0])
+            _fail(source, "keypoints2d", f"confidence {confidence[bad]:g} at (camera, frame, joint) {bad} is not in [0, 1]")
+        agree("cameras", keypoints.shape[0], "keypoints2d")
+        agree("frames", keypoints.shape[1], "keypoints2d")
+        out["keypoints2d"] = keypoints.astype(np.float32)
     return Sequence(**out)

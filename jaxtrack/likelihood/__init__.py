@@ -25,6 +25,7 @@ from ._keypoints import KeypointLikelihood as KeypointLikelihood
 from ._keypoints import joint_sigmas as joint_sigmas
 from ._keypoints import make_keypoint_likelihood as make_keypoint_likelihood
 from ._registry import DEFAULT_LIKELIHOOD as DEFAULT_LIKELIHOOD
+from ._registry import OBSERVATION_KINDS as OBSERVATION_KINDS
 from ._registry import LikelihoodRecipe as LikelihoodRecipe
 from ._registry import SceneInputs as SceneInputs
 from ._registry import available_likelihoods as available_likelihoods

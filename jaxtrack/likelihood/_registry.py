@@ -3,10 +3,13 @@ table that ``tracking.prepare_test`` (so ``jaxtrack experiment``, ``jaxtrack tra
 demo) reads.
 
 A likelihood recipe builds an ``AbstractLikelihood`` from what a test scene offers
-(``SceneInputs``: the body, the cameras, the observed silhouettes, the temperature) and its own
-options. Register one of your own with ``register_likelihood(LikelihoodRecipe(...))``; loaded
-with ``--plugin``, it is then a ``--likelihood`` of ``jaxtrack experiment`` and ``jaxtrack
-track``, its options given by ``--likelihood-option KEY=VALUE``.
+(``SceneInputs``: the body, the cameras, the observed silhouettes and 2-D keypoints, the
+temperature) and its own options, and says which of the scene's observations it reads
+(``observes``): a frame's observation is that entry's array when it reads one, a dict of them
+when it reads several (each term then wrapped in ``ObservationPart``). Register one of your
+own with ``register_likelihood(LikelihoodRecipe(...))``; loaded with ``--plugin``, it is then
+a ``--likelihood`` of ``jaxtrack experiment`` and ``jaxtrack track``, its options given by
+``--likelihood-option KEY=VALUE``.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from .._registries import Registry, check_name
-from ._base import AbstractLikelihood
+from ._base import AbstractLikelihood, ObservationPart
+from ._keypoints import make_keypoint_likelihood
 from ._silhouette import make_silhouette_likelihood
 
 
@@ -31,6 +35,8 @@ class SceneInputs:
         silhouettes: (C, T, H, W) float32 observed silhouettes in [0, 1], the tracked frames.
         scale: the temperature, ``ln p = -scale * cost`` (``--likelihood-scale``).
         window: the silhouette window requested (``"auto"``, None for dense, or (rows, cols)).
+        keypoints: (C, T, 15, 3) 2-D detections of the 15 HumanEva joints (pixels u, v and a
+            confidence in [0, 1]), the tracked frames, or None where the scene has none.
     """
 
     body: Any
@@ -38,6 +44,7 @@ class SceneInputs:
     silhouettes: Any
     scale: float
     window: Any = "auto"
+    keypoints: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,17 +58,26 @@ class LikelihoodRecipe:
             observation)`` reads one frame's (C, H, W) silhouettes.
         options: the builder's keyword options and their defaults (``--likelihood-option K=V``;
             each value is parsed as its default's type).
+        observes: the scene observations it reads, of ``OBSERVATION_KINDS``: ``("silhouettes",)``
+            (the default), ``("keypoints",)``, or several, whose frames then arrive as a dict
+            ``{"silhouettes": (C, H, W), "keypoints": (C, 15, 3)}``.
     """
 
     name: str
     description: str
     build: Callable[..., AbstractLikelihood]
     options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    observes: tuple[str, ...] = ("silhouettes",)
 
     def __post_init__(self):
         check_name("likelihood", self.name)
         if not callable(self.build):
             raise TypeError(f"likelihood {self.name!r}: build must be a callable")
+        observes = tuple(self.observes) if isinstance(self.observes, (tuple, list)) else ()
+        if not observes or len(set(observes)) != len(observes) or not set(observes) <= set(OBSERVATION_KINDS):
+            raise ValueError(f"likelihood {self.name!r}: observes must name one or more of {OBSERVATION_KINDS} once each, "
+                             f"got {self.observes!r}")
+        object.__setattr__(self, "observes", observes)
 
     def make(self, inputs: SceneInputs, **options) -> AbstractLikelihood:
         """The likelihood of a scene; ``options`` override ``self.options``. Raises
@@ -77,6 +93,8 @@ class LikelihoodRecipe:
                             "not an AbstractLikelihood")
         return likelihood
 
+
+OBSERVATION_KINDS = ("silhouettes", "keypoints")
 
 _LIKELIHOODS: Registry[LikelihoodRecipe] = Registry("likelihood", LikelihoodRecipe, "register_likelihood")
 
@@ -110,3 +128,26 @@ DEFAULT_LIKELIHOOD = "silhouette"
 register_likelihood(LikelihoodRecipe(
     DEFAULT_LIKELIHOOD, "the bidirectional silhouette likelihood through the soft rasteriser (000 eq. 12); "
     "on sampled pixels above 160x120 (--pixel-samples)", _silhouette, {"edge_width": 1.0}))
+
+
+def _keypoints(inputs: SceneInputs, *, sigma_px: float, robust: str, weight: float) -> AbstractLikelihood:
+    return make_keypoint_likelihood(inputs.body, inputs.rig, sigma_px=sigma_px, robust=robust, weight=weight,
+                                    dtype=inputs.body.radii.dtype)
+
+
+_KEYPOINT_OPTIONS = {"sigma_px": 4.0, "robust": "cauchy", "weight": 1.0}
+register_likelihood(LikelihoodRecipe(
+    "keypoints", "the reprojection error of 2-D joint detections, robust and confidence-weighted (the file's keypoints2d)",
+    _keypoints, _KEYPOINT_OPTIONS, observes=("keypoints",)))
+
+
+def _silhouette_and_keypoints(inputs: SceneInputs, *, edge_width: float, sigma_px: float, robust: str,
+                              weight: float) -> AbstractLikelihood:
+    silhouettes = _silhouette(inputs, edge_width=edge_width)
+    keypoints = _keypoints(inputs, sigma_px=sigma_px, robust=robust, weight=weight)
+    return ObservationPart(silhouettes, "silhouettes") + ObservationPart(keypoints, "keypoints")
+
+
+register_likelihood(LikelihoodRecipe(
+    "silhouette+keypoints", "the silhouettes' likelihood times the keypoints' (independent cues: their log-likelihoods add)",
+    _silhouette_and_keypoints, {"edge_width": 1.0, **_KEYPOINT_OPTIONS}, observes=("silhouettes", "keypoints")))

@@ -35,13 +35,15 @@ from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..errors import ConfigurationError
 from ..filters import AbstractComposedFilter, LangevinRefinement, run_filter
-from ..io import Sequence
+from ..io import Sequence, check_keypoints
 from ..likelihood import (
     DEFAULT_LIKELIHOOD,
     BodyCalibration,
+    ObservationPart,
     SampledSilhouetteLikelihood,
     SceneInputs,
     SilhouetteLikelihood,
+    SumLikelihood,
     body_of,
     calibrate_body,
     calibrate_shape,
@@ -80,14 +82,28 @@ def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.n
     return np.asarray(forward_kinematics(skeleton, jnp.asarray(poses, skeleton.offsets.dtype)), np.float64)
 
 
-def check_test_sequence(sequence: Sequence, name: str) -> None:
-    """A test sequence needs silhouettes, cameras and ground truth; raise ``ValueError`` if not."""
-    missing = [what for what, ok in (("silhouettes", sequence.silhouettes is not None), ("cameras", sequence.has_cameras)) if not ok]
+def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...] = ("silhouettes",)) -> None:
+    """A test sequence needs the observations its likelihood reads (``observes``: silhouettes,
+    keypoints), cameras and ground truth; raise ``ValueError`` if not."""
+    present = {"silhouettes": sequence.silhouettes is not None, "keypoints": sequence.keypoints2d is not None,
+               "cameras": sequence.has_cameras}
+    keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size"}
+    missing = [what for what in (*observes, "cameras") if not present[what]]
     if missing:
-        raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)} (found neither key)" if len(missing) == 2
-                         else f"{name}: a test sequence needs {missing[0]}, which the file lacks")
+        raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)}, which the file lacks (key"
+                         f"{'s' if len(missing) > 1 else ''} {'; '.join(keys[m] for m in missing)})")
     if sequence.joints3d is None and sequence.pose is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
+
+
+def keypoint_height_pixels(keypoints) -> float:
+    """The median over views of the confident (> 0.5) keypoints' vertical extent in pixels,
+    keypoints (C, 15, 3); about 0.9 of the person's height (the head joint is not the crown)."""
+    heights = []
+    for view in np.asarray(keypoints):
+        v = view[view[:, 2] > 0.5, 1]
+        heights.append(float(np.ptp(v)) if v.size >= 2 else 0.0)
+    return float(np.median(heights))
 
 
 def check_frame_rates(sequences, names, *, tolerance: float = 0.01) -> None:
@@ -273,9 +289,30 @@ def _start_pose(sequence: Sequence, body_model, pose, key) -> np.ndarray:
     return np.asarray(inverse_kinematics(sequence.joints3d[:1], skeleton=body_model.skeleton, key=key, dtype=jnp.float64).pose[0])
 
 
+def _is_silhouette_part(term) -> bool:
+    return isinstance(term, ObservationPart) and term.key == "silhouettes" and isinstance(term.term, SilhouetteLikelihood)
+
+
+def _samples_pixels(likelihood) -> bool:
+    """Whether the likelihood's silhouettes can be scored on sampled pixels: a
+    ``SilhouetteLikelihood``, or a sum with one on the ``"silhouettes"`` entry of the frame."""
+    return isinstance(likelihood, SilhouetteLikelihood) or (
+        isinstance(likelihood, SumLikelihood) and any(_is_silhouette_part(t) for t in likelihood.terms))
+
+
+def _on_sampled_pixels(likelihood, observations, key, samples: int):
+    """The likelihood and observations with the silhouettes scored on ``samples`` stratified
+    pixels per view and frame (``_samples_pixels`` must hold)."""
+    if isinstance(likelihood, SilhouetteLikelihood):
+        return SampledSilhouetteLikelihood.from_dense(likelihood), sample_frames(key, observations, samples=samples)
+    terms = tuple(ObservationPart(SampledSilhouetteLikelihood.from_dense(t.term), t.key) if _is_silhouette_part(t) else t
+                  for t in likelihood.terms)
+    return SumLikelihood(terms), {**observations, "silhouettes": sample_frames(key, observations["silhouettes"], samples=samples)}
+
+
 def _pixel_samples(requested, likelihood, likelihood_name, width, height, name, say) -> int | None:
     """The pixels per view and frame the scene's silhouette likelihood scores (None: all)."""
-    sampled = isinstance(likelihood, SilhouetteLikelihood)
+    sampled = _samples_pixels(likelihood)
     if requested == "auto":
         requested = default_pixel_samples(width, height) if sampled else None
         say(f"{name}: {width}x{height} images: the {likelihood_name} likelihood scores "
@@ -306,7 +343,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     skeleton. With ``calibrate``, the capsule radii alone are fitted to the first frame at the
     initial pose (``likelihood.calibrate_shape``). With ``resolution`` = (width, height), the
     silhouettes are block-averaged down to it and the cameras rescaled (``Sequence.resized``). With
-    ``pixel_samples`` = n, the likelihood is the ``SampledSilhouetteLikelihood`` on n stratified
+    ``pixel_samples`` = n, the likelihood (or its silhouette term) is the ``SampledSilhouetteLikelihood`` on n stratified
     pixels per view and frame (``sample_frames`` with ``fold_in(key, PIXEL_SAMPLE_TAG)``, drawn
     once for the scene, after any calibration) and the observations are the ``PixelSample``;
     ``"auto"``: by the image size (``likelihood.default_pixel_samples``); None or 0: every pixel
@@ -315,10 +352,13 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     12) built with ``likelihood_options``. ``say`` (e.g. ``print``) is told what was chosen."""
     say = say or (lambda *a, **k: None)
     recipe = get_likelihood(likelihood)
-    check_test_sequence(sequence, name)
+    check_test_sequence(sequence, name, recipe.observes)
+    if calibrate and "silhouettes" not in recipe.observes:
+        raise ConfigurationError(f"{name}: --calibrate fits the capsule radii to silhouettes; the {recipe.name} likelihood "
+                                 "reads none")
     if height is not None:
         check_height(height)
-    total = sequence.silhouettes.shape[1]
+    total = sequence.num_frames
     frames = total if frames is None else min(frames, total)
     if resolution is not None:
         sequence = sequence.resized(*resolution)
@@ -330,18 +370,23 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if resolved.poses is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
     body_model = resolved.body
-    observed = check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames]
+    observed = (None if sequence.silhouettes is None
+                else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames])
+    keypoints = None if sequence.keypoints2d is None else check_keypoints(sequence.keypoints2d, rig.num_views,
+                                                                            where=f"{name} keypoints2d")[:, :frames]
     truth_poses = resolved.poses[:frames]
     truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
     check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
                   f"{name}'s initial pose (frame 0)")
-    likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window),
-                             **dict(likelihood_options or {}))
+    likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window,
+                                         keypoints=keypoints), **dict(likelihood_options or {}))
     pixel_samples = _pixel_samples(pixel_samples, likelihood, recipe.name, width, image_height, name, say)
-    observations = np.moveaxis(observed, 1, 0)
+    per_frame = {"silhouettes": observed, "keypoints": keypoints}  # each (C, T, ...) -> (T, C, ...)
+    per_frame = {kind: np.moveaxis(per_frame[kind], 1, 0) for kind in recipe.observes}
+    observations = per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
     initial_pose = truth_poses[0]
     calibration = None
-    tall = person_height_pixels(observed[:, 0])
+    tall = person_height_pixels(observed[:, 0]) if observed is not None else keypoint_height_pixels(keypoints[:, 0]) / 0.9
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
     if wanted and body == "auto" and tall < MIN_CALIBRATION_PIXELS:
         print(f"warning: {name}: the file has no skeleton, and the person is {tall:.0f} pixels tall: too small to calibrate limb "
@@ -361,7 +406,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
         try:
             calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(truth_poses[:1], count, axis=0),
-                                                                   jnp.asarray(observations[:count]), height=height)
+                                                                   jax.tree.map(lambda x: jnp.asarray(x[:count]), observations),
+                                                                   height=height)
         except ConfigurationError as err:
             if body == "calibrate":  # asked for: the failure is the answer
                 raise ConfigurationError(f"{name}: {err}") from None
@@ -380,10 +426,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         body_model = likelihood.body
     start_error = float(np.mean(np.linalg.norm(
         np.asarray(forward_kinematics(body_model.skeleton, jnp.asarray(initial_pose, TRACKING_DTYPE)), np.float64) - truth[0], axis=-1)))
-    observations = jnp.asarray(observations)
+    observations = jax.tree.map(jnp.asarray, observations)
     if pixel_samples is not None:
-        likelihood = SampledSilhouetteLikelihood.from_dense(likelihood)
-        observations = sample_frames(jax.random.fold_in(key, PIXEL_SAMPLE_TAG), observations, samples=pixel_samples)
+        likelihood, observations = _on_sampled_pixels(likelihood, observations, jax.random.fold_in(key, PIXEL_SAMPLE_TAG),
+                                                      pixel_samples)
     return TestScene(
         likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(initial_pose, TRACKING_DTYPE),
         truth_poses=truth_poses, truth_joints=truth, body=body_model, shape_calibration=report, subject=resolved,

@@ -43,11 +43,16 @@ def _checked_estimate(sequence: Sequence, estimate) -> np.ndarray:
 
 
 def _background(sequence: Sequence) -> np.ndarray:
-    """(C, T, H, W, 3) uint8 frames: images if present, else silhouettes in grey."""
+    """(C, T, H, W, 3) uint8 frames: images if present, else silhouettes in grey, else (2-D
+    keypoints only) a dark canvas of the cameras' size."""
     if sequence.images is not None:
         return sequence.images
     if sequence.silhouettes is None:
-        raise ValueError("the sequence has neither silhouettes nor images to draw on")
+        sizes = {tuple(int(v) for v in size) for size in (sequence.image_size if sequence.has_cameras else [])}
+        if len(sizes) != 1:
+            raise ValueError("the sequence has neither silhouettes nor images to draw on, nor cameras of one image size")
+        (width, height), = sizes
+        return np.full((len(sequence.image_size), sequence.num_frames, height, width, 3), 40, np.uint8)
     sil = sequence.binary_silhouettes()
     grey = (40 + 170 * sil).astype(np.uint8)
     return np.repeat(grey[..., None], 3, axis=-1)

@@ -1,0 +1,64 @@
+"""Binary morphology on (..., H, W) masks with a disk or a square of radius r: dilation, erosion,
+opening and closing, as ``scipy.ndimage.binary_dilation`` and ``binary_erosion`` with that
+structuring element (outside the image counts as background). The disk is exact through the
+distance transform (a pixel is within the dilation iff its squared distance to the mask is at
+most r^2); the square is a separable running maximum (``lax.reduce_window``)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .._custom_types import Array, Bool
+from ._distance import squared_distance_transform
+
+SHAPES = ("disk", "square")
+
+
+def _check(mask, radius: int, shape: str):
+    mask = jnp.asarray(mask)
+    if mask.ndim < 2:
+        raise ValueError(f"mask must be (..., height, width), got shape {mask.shape}")
+    if isinstance(radius, bool) or not isinstance(radius, int) or radius < 0:
+        raise ValueError(f"radius must be a whole number of pixels >= 0, got {radius!r}")
+    if shape not in SHAPES:
+        raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+    return mask.astype(bool)
+
+
+def dilate(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
+    """Pixels within ``radius`` of the mask (a disk: Euclidean; a square: the (2r + 1)^2 box)."""
+    mask = _check(mask, radius, shape)
+    if radius == 0:
+        return mask
+    if shape == "disk":
+        return squared_distance_transform(mask) <= radius * radius
+    window = (1,) * (mask.ndim - 2) + (2 * radius + 1, 2 * radius + 1)
+    pad = [(0, 0)] * (mask.ndim - 2) + [(radius, radius), (radius, radius)]
+    return jax.lax.reduce_window(mask, False, jax.lax.bitwise_or, window, (1,) * mask.ndim, pad)
+
+
+def erode(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
+    """Pixels whose whole neighbourhood (disk or square of ``radius``) is in the mask; the
+    border of the image counts as background, so the mask shrinks from it too."""
+    mask = _check(mask, radius, shape)
+    if radius == 0:
+        return mask
+    pad = [(0, 0)] * (mask.ndim - 2) + [(1, 1), (1, 1)]
+    outside = jnp.pad(~mask, pad, constant_values=True)  # a frame of background around the image
+    return ~dilate(outside, radius, shape)[..., 1:-1, 1:-1]
+
+
+def opening(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
+    """Erosion then dilation: removes specks smaller than the structuring element."""
+    return dilate(erode(mask, radius, shape), radius, shape)
+
+
+def closing(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
+    """Dilation then erosion: fills holes and gaps smaller than the structuring element (the
+    image border, unlike SciPy's, does not erode what the dilation brought to it)."""
+    mask = _check(mask, radius, shape)
+    pad = [(0, 0)] * (mask.ndim - 2) + [(radius, radius), (radius, radius)]
+    padded = jnp.pad(mask, pad)
+    closed = ~dilate(~dilate(padded, radius, shape), radius, shape)
+    return closed[..., radius : radius + mask.shape[-2], radius : radius + mask.shape[-1]]
