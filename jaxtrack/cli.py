@@ -105,10 +105,20 @@ def _scene(args) -> int:
 def _keypoints(args) -> int:
     from .io import check_output, load_keypoints, load_sequence, read_coco_keypoints, read_openpose_folder, save_sequence
 
-    args.out = check_output(args.out, [args.sequence, *args.sources], suffix=".npz")
+    args.out = check_output(args.out, [args.sequence, *args.sources, *(args.calibration or [])], suffix=".npz")
     sequence = load_sequence(args.sequence)
+    if args.calibration:
+        import numpy as np
+
+        from .io import read_calibration
+
+        rig = read_calibration(args.calibration, units=args.units, up=args.up, dtype=np.float64)
+        sequence = sequence.replace(camera_K=np.asarray(rig.K), camera_R=np.asarray(rig.R), camera_t=np.asarray(rig.t),
+                                    camera_dist=np.asarray(rig.dist), image_size=np.asarray(rig.image_size),
+                                    camera_names=np.asarray(rig.names))
+        print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
     if not sequence.has_cameras:
-        raise ValueError(f"{args.sequence}: has no cameras; 2-D keypoints are read per camera")
+        raise ValueError(f"{args.sequence}: has no cameras; give the calibration (--calibration), 2-D keypoints are read per camera")
     views = len(sequence.image_size)
     if args.format == "npz":
         if len(args.sources) != 1:
@@ -473,6 +483,11 @@ def build_parser() -> argparse.ArgumentParser:
     keypoints.add_argument("--layout", choices=tuple(KEYPOINT_LAYOUTS),
                            help="the detector's keypoint layout (default: body25 for OpenPose, coco17 for COCO JSON as MMPose "
                                 "and RTMPose write it)")
+    keypoints.add_argument("--calibration", nargs="+", metavar="FILE",
+                           help="the cameras, replacing the file's: one JSON or TOML (aniposelib, Pose2Sim, FreeMoCap) file, "
+                                "or one OpenCV FileStorage YAML/XML per camera (docs/keypoints.md)")
+    keypoints.add_argument("--units", choices=("m", "mm"), help="the calibration's length unit (default: told from the cameras)")
+    keypoints.add_argument("--up", help="the calibration world's up axis, e.g. z, y, -y (default: told from the cameras)")
     keypoints.set_defaults(run=_keypoints)
 
     fit = sub.add_parser("fit", help="fit a pose manifold to one or more sequence files with 'pose'")

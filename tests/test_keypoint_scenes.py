@@ -138,7 +138,7 @@ def test_a_scene_without_what_the_likelihood_reads_is_refused(scene):
 
 
 def test_the_command_line_adds_detector_files_and_synthetic_detections(scene, tmp_path, capsys):
-    _rig, seq = scene
+    rig, seq = scene
     path = save_sequence(tmp_path / "walk", seq.replace(keypoints2d=None))
     layout = get_keypoint_layout("coco18")
     folders = []
@@ -160,3 +160,14 @@ def test_the_command_line_adds_detector_files_and_synthetic_detections(scene, tm
     assert "wrote" in capsys.readouterr().out
     assert main(["keypoints", path, str(tmp_path / "x.npz"), *folders[:3], "--layout", "coco18"]) == 2
     assert "has 4 cameras: give one openpose source per camera" in capsys.readouterr().err
+    # a joints-only file and the cameras from a calibration file
+    from jaxtrack.io import CAMERA_KEYS, save_calibration
+
+    bare = save_sequence(tmp_path / "bare", seq.replace(keypoints2d=None, silhouettes=None, **dict.fromkeys(CAMERA_KEYS)))
+    assert main(["keypoints", bare, str(tmp_path / "no_cameras.npz"), *folders, "--layout", "coco18"]) == 2
+    assert "has no cameras; give the calibration (--calibration)" in capsys.readouterr().err
+    calibration = save_calibration(tmp_path / "rig.json", rig)
+    assert main(["keypoints", bare, str(tmp_path / "calibrated.npz"), *folders, "--layout", "coco18", "--calibration", calibration]) == 0
+    calibrated = load_sequence(tmp_path / "calibrated.npz")
+    np.testing.assert_allclose(calibrated.camera_K, np.asarray(rig.K), atol=1e-9)
+    np.testing.assert_allclose(calibrated.keypoints2d, read, atol=1e-6)

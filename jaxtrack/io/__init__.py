@@ -29,7 +29,12 @@ from ._output import check_folder as check_folder
 from ._output import check_output as check_output
 from ._output import output_file as output_file
 from ._sequence import ARRAY_KEYS as ARRAY_KEYS
+from ._sequence import CAMERA_KEYS as CAMERA_KEYS
 from ._sequence import Sequence as Sequence
 from ._sequence import SequenceFileError as SequenceFileError
 from ._sequence import load_sequence as load_sequence
 from ._sequence import save_sequence as save_sequence
+from ._calibration import CalibrationFileError as CalibrationFileError
+from ._calibration import read_calibration as read_calibration
+from ._calibration import rodrigues as rodrigues
+from ._calibration import save_calibration as save_calibration
