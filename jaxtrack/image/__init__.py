@@ -29,3 +29,7 @@ from ._pyramid import pyramid as pyramid
 from ._pyramid import resize as resize
 from ._resample import downsample_silhouettes as downsample_silhouettes
 from ._resample import resolution_factors as resolution_factors
+from ._background import BackgroundModel as BackgroundModel
+from ._background import Foreground as Foreground
+from ._background import fit_background as fit_background
+from ._background import subtract_background as subtract_background

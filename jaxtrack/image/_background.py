@@ -1,0 +1,119 @@
+"""Background subtraction: binary silhouettes and a foreground probability map from RGB frames of
+a static camera.
+
+The background model is per pixel: the temporal median colour of background frames, or of the
+video itself when there are none (the median is the background wherever the person covers a
+pixel in fewer than half of the frames, so sample frames spread over a walk), and a noise
+scale, the median absolute deviation of the frames' colour distance to it (1.4826 MAD, floored
+at ``min_noise``).
+
+A frame's pixel is then scored by its colour distance to the background in noise units, z. A
+shadow is the same surface, darker: its chromaticity (r, g) stays within ``shadow_chroma`` of the
+background's while its intensity falls to a ratio in ``shadow_ratio`` (Cucchiara et al.'s test,
+in normalised rgb rather than HSV), and it counts as background. The silhouette keeps the
+pixels with z over ``low`` connected to pixels over ``high`` (hysteresis), then an opening
+removes specks and a closing fills small holes. The probability map is a logistic in z centred
+between the two thresholds, 0 on shadows.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._custom_types import Array, Float
+from ._colour import rgb_to_chromaticity, to_float
+from ._edges import hysteresis
+from ._morphology import closing, opening
+
+
+class BackgroundModel(eqx.Module):
+    """Attributes:
+        colour: (..., H, W, 3) median background colour in [0, 1] (leading axes: views).
+        noise: (..., H, W) per-pixel noise scale of the colour distance, in [0, 1] units.
+    """
+
+    colour: Float[Array, "... H W 3"]
+    noise: Float[Array, "... H W"]
+
+
+class Foreground(eqx.Module):
+    """Attributes:
+        mask: (..., H, W) bool silhouettes.
+        probability: (..., H, W) foreground probability in [0, 1].
+        shadow: (..., H, W) bool pixels taken for the background's shadow.
+    """
+
+    mask: Array
+    probability: Float[Array, "... H W"]
+    shadow: Array
+
+
+def _check_frames(frames, what: str):
+    frames = jnp.asarray(frames)
+    if frames.ndim < 4 or frames.shape[-1] != 3:
+        raise ValueError(f"{what} must be (frames, ..., H, W, 3) RGB, got shape {frames.shape}")
+    if frames.shape[0] < 1:
+        raise ValueError(f"{what} has no frames")
+    return to_float(frames)
+
+
+def fit_background(frames, *, min_noise: float = 2.0 / 255.0) -> BackgroundModel:
+    """The background of (T, ..., H, W, 3) RGB frames (uint8 or [0, 1]; T first, views may
+    follow): their per-pixel median, and the noise scale (module docstring). Background frames,
+    or frames spread over the video itself (the person moving)."""
+    frames = _check_frames(frames, "frames")
+    if not (np.isfinite(min_noise) and min_noise > 0):
+        raise ValueError(f"min_noise must be positive, got {min_noise!r}")
+    return _fit(frames, jnp.asarray(min_noise, frames.dtype))
+
+
+@jax.jit
+def _fit(frames, min_noise):
+    colour = jnp.median(frames, axis=0)
+    distance = jnp.linalg.norm(frames - colour, axis=-1)
+    noise = 1.4826 * jnp.median(distance, axis=0)
+    return BackgroundModel(colour, jnp.maximum(noise, min_noise))
+
+
+def subtract_background(model: BackgroundModel, frames, *, low: float = 4.0, high: float = 8.0,
+                        shadow_ratio: tuple[float, float] = (0.35, 0.95), shadow_chroma: float = 0.03,
+                        open_radius: int = 1, close_radius: int = 2) -> Foreground:
+    """Silhouettes of (..., H, W, 3) RGB frames against ``model`` (its shape without the frame
+    axis; any leading axes broadcast): hysteresis between ``low`` and ``high`` noise units, the
+    shadow test, an opening of ``open_radius`` and a closing of ``close_radius`` pixels (module
+    docstring)."""
+    frames = jnp.asarray(frames)
+    if frames.ndim < 3 or frames.shape[-1] != 3:
+        raise ValueError(f"frames must be (..., H, W, 3) RGB, got shape {frames.shape}")
+    if frames.shape[-3:] != model.colour.shape[-3:]:
+        raise ValueError(f"frames of {frames.shape[-2]}x{frames.shape[-3]} against a background of "
+                         f"{model.colour.shape[-2]}x{model.colour.shape[-3]} (width x height)")
+    if not 0 < low <= high:
+        raise ValueError(f"thresholds must satisfy 0 < low <= high (noise units), got {low}, {high}")
+    lo, hi = shadow_ratio
+    if not 0 < lo < hi <= 1:
+        raise ValueError(f"shadow_ratio must be (min, max) with 0 < min < max <= 1, got {shadow_ratio}")
+    return _subtract(model, to_float(frames), float(low), float(high), (float(lo), float(hi)), float(shadow_chroma),
+                     int(open_radius), int(close_radius))
+
+
+@eqx.filter_jit
+def _subtract(model, frames, low, high, shadow_ratio, shadow_chroma, open_radius: int, close_radius: int):
+    z = jnp.linalg.norm(frames - model.colour, axis=-1) / model.noise
+    chroma, background = rgb_to_chromaticity(frames), rgb_to_chromaticity(model.colour)
+    ratio = chroma[..., 2] / jnp.maximum(background[..., 2], 1e-6)
+    same_surface = jnp.max(jnp.abs(chroma[..., :2] - background[..., :2]), axis=-1) <= shadow_chroma
+    shadow = same_surface & (ratio >= shadow_ratio[0]) & (ratio <= shadow_ratio[1]) & (z >= low)
+    strong = (z >= high) & ~shadow
+    weak = (z >= low) & ~shadow
+    mask = hysteresis(strong, weak)
+    if open_radius:
+        mask = opening(mask, open_radius)
+    if close_radius:
+        mask = closing(mask, close_radius)
+    middle, width = 0.5 * (low + high), max(0.25 * (high - low), 1e-3)
+    probability = jnp.where(shadow, 0.0, jax.nn.sigmoid((z - middle) / width))
+    return Foreground(mask, probability, shadow)
