@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.camera import default_rig
-from jaxtrack.data import SilhouetteNoise, build_scene, generate_motion
+from jaxtrack.data import NO_NOISE, SilhouetteNoise, build_scene, generate_motion
 
 
 def tree_allclose(x, y, rtol=1e-5, atol=1e-8) -> bool:
@@ -41,7 +41,7 @@ def small_scene(num_frames: int = 8, width: int = 40, height: int = 30, noisy: b
     key = jax.random.key(seed)
     motion = generate_motion("walk", "S1", num_frames=num_frames, fps=30.0, key=key, dtype=jnp.float64)
     rig = default_rig(width, height, dtype=jnp.float64)
-    noise = SilhouetteNoise() if noisy else SilhouetteNoise(0, 0, 0, (0, 0), 0, (0, 0), 0, 0)
+    noise = SilhouetteNoise() if noisy else NO_NOISE
     scene = build_scene(jax.random.fold_in(key, 1), motion, rig, noise)
     return motion, rig, scene
 

@@ -66,6 +66,15 @@ def test_the_distance_transform_is_scipys_exactly(shape, density):
     np.testing.assert_allclose(np.asarray(distance_transform(features)), expected, rtol=1e-6)
 
 
+def test_the_distance_transform_within_a_radius_is_exact_up_to_it():
+    features = np.random.default_rng(7).random((2, 30, 40)) < 0.01
+    for radius in (1, 4):
+        within = np.asarray(squared_distance_transform(features, max_distance=radius))
+        for i in range(2):
+            expected = np.round(ndimage.distance_transform_edt(~features[i]) ** 2)
+            np.testing.assert_array_equal(within[i], np.where(expected <= radius**2, expected, np.inf))
+
+
 def test_the_distance_transform_batches_and_is_infinite_without_features():
     rng = np.random.default_rng(4)
     features = rng.random((2, 3, 20, 25)) < 0.02
@@ -121,7 +130,8 @@ def test_edge_proximity_falls_off_with_the_distance():
     edges = np.zeros((20, 20), bool)
     edges[:, 10] = True
     p = np.asarray(edge_proximity(edges, scale=2.0))
-    np.testing.assert_allclose(p[5], np.exp(-((np.arange(20) - 10.0) ** 2) / 8.0), rtol=1e-6)
+    distance = np.abs(np.arange(20) - 10.0)
+    np.testing.assert_allclose(p[5], np.where(distance <= 8, np.exp(-(distance**2) / 8.0), 0.0), rtol=1e-6)  # 0 beyond 4 scales
     assert np.all(np.asarray(edge_proximity(np.zeros((4, 4), bool))) == 0)
 
 

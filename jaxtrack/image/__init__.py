@@ -6,6 +6,10 @@ pyramids, colour conversions, and silhouettes resampled to the resolution a trac
 Written here rather than taken from dm-pix, which has a Gaussian blur and colour conversions but
 no Sobel, edges, distance transform or morphology (docs/libraries.md)."""
 
+from ._background import BackgroundModel as BackgroundModel
+from ._background import Foreground as Foreground
+from ._background import fit_background as fit_background
+from ._background import subtract_background as subtract_background
 from ._colour import LUMA_WEIGHTS as LUMA_WEIGHTS
 from ._colour import rgb_to_chromaticity as rgb_to_chromaticity
 from ._colour import rgb_to_grey as rgb_to_grey
@@ -29,7 +33,4 @@ from ._pyramid import pyramid as pyramid
 from ._pyramid import resize as resize
 from ._resample import downsample_silhouettes as downsample_silhouettes
 from ._resample import resolution_factors as resolution_factors
-from ._background import BackgroundModel as BackgroundModel
-from ._background import Foreground as Foreground
-from ._background import fit_background as fit_background
-from ._background import subtract_background as subtract_background
+from ._sample import sample_bilinear as sample_bilinear

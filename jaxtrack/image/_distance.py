@@ -13,6 +13,8 @@ them exact and the result equals ``scipy.ndimage.distance_transform_edt`` (teste
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -53,13 +55,42 @@ def _envelope_1d(f):
     return (q - root.astype(f.dtype)) ** 2 + f[root]
 
 
-def squared_distance_transform(features) -> Float[Array, "... H W"]:
+def squared_distance_transform(features, max_distance: int | None = None) -> Float[Array, "... H W"]:
     """(..., H, W) squared Euclidean distance, in pixels^2, from every pixel to the nearest
-    True pixel of ``features`` (0 on them); ``inf`` in an image without one."""
+    True pixel of ``features`` (0 on them); ``inf`` in an image without one.
+
+    With ``max_distance`` = R (whole pixels), distances up to R are exact and larger ones
+    ``inf``: two separable passes of 2R + 1 shifted minima (the same lower envelope, its
+    parabolas limited to offsets within R), much faster than the full transform when R is
+    small (edge maps, morphology)."""
     features = jnp.asarray(features)
     if features.ndim < 2:
         raise ValueError(f"features must be (..., height, width), got shape {features.shape}")
-    return _squared_distance(features.astype(bool))
+    if max_distance is None:
+        return _squared_distance(features.astype(bool))
+    if isinstance(max_distance, bool) or not isinstance(max_distance, int) or max_distance < 0:
+        raise ValueError(f"max_distance must be a whole number of pixels >= 0, got {max_distance!r}")
+    return _squared_distance_within(features.astype(bool), max_distance)
+
+
+def _shifted_minimum(cost, radius: int, axis: int):
+    """min over |k| <= radius of k^2 + cost[i + k] along ``axis`` (inf outside the image)."""
+    size = cost.shape[axis]
+    pad = [(0, 0)] * cost.ndim
+    pad[axis] = (radius, radius)
+    padded = jnp.pad(cost, pad, constant_values=jnp.inf)
+    out = cost
+    for k in range(-radius, radius + 1):
+        if k:
+            out = jnp.minimum(out, float(k * k) + jax.lax.slice_in_dim(padded, radius + k, radius + k + size, axis=axis))
+    return out
+
+
+@functools.partial(jax.jit, static_argnums=1)
+def _squared_distance_within(features, radius: int):
+    cost = jnp.where(features, 0.0, jnp.inf).astype(jnp.float32)
+    squared = _shifted_minimum(_shifted_minimum(cost, radius, -1), radius, -2)
+    return jnp.where(squared <= radius * radius, squared, jnp.inf)
 
 
 @jax.jit

@@ -8,8 +8,8 @@ one setting serves silhouettes, grey images and frames of any contrast.
 
 ``edge_proximity`` is the map 001 eq. 12 reads at the model's edge points (after Deutscher and
 Reid): each pixel's value falls off with its distance d to the nearest edge,
-``p_e = exp(-d^2 / (2 s^2))``, d from the exact distance transform; 1 on an edge, about 0.14
-at 2 s.
+``p_e = exp(-d^2 / (2 s^2))``, d from the exact distance transform within 4 s (0 beyond); 1 on
+an edge, about 0.14 at 2 s.
 """
 
 from __future__ import annotations
@@ -85,8 +85,10 @@ def canny_edges(image, sigma: float = 1.0, low: float = 0.1, high: float = 0.2) 
 
 def edge_proximity(edges, scale: float = 2.0) -> Float[Array, "... H W"]:
     """(..., H, W) map in [0, 1] that falls off with the distance d (pixels) to the nearest edge
-    pixel: ``exp(-d^2 / (2 scale^2))`` (001's edge map; 0 everywhere in an image without edges)."""
+    pixel: ``exp(-d^2 / (2 scale^2))`` (001's edge map), 0 beyond 4 scales and everywhere in an
+    image without edges."""
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"scale must be a positive number of pixels, got {scale!r}")
-    squared = squared_distance_transform(edges)
+    reach = int(np.ceil(4.0 * scale))  # beyond 4 scales the map is below 3.4e-4: 0
+    squared = squared_distance_transform(edges, max_distance=reach)
     return jnp.where(jnp.isfinite(squared), jnp.exp(-squared / (2.0 * scale * scale)), 0.0)

@@ -6,6 +6,7 @@ and grad apply."""
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -56,7 +57,7 @@ def correlate1d(image, weights, axis: int) -> Float[Array, ...]:
     out = jnp.zeros_like(image)
     for k, w in enumerate(weights):
         if w != 0:
-            out = out + jnp.asarray(w, image.dtype) * jnp.take(padded, jnp.arange(k, k + size), axis=axis)
+            out = out + jnp.asarray(w, image.dtype) * jax.lax.slice_in_dim(padded, k, k + size, axis=axis)
     return out
 
 

@@ -1,8 +1,8 @@
 """Binary morphology on (..., H, W) masks with a disk or a square of radius r: dilation, erosion,
 opening and closing, as ``scipy.ndimage.binary_dilation`` and ``binary_erosion`` with that
 structuring element (outside the image counts as background). The disk is exact through the
-distance transform (a pixel is within the dilation iff its squared distance to the mask is at
-most r^2); the square is a separable running maximum (``lax.reduce_window``)."""
+distance transform within r (a pixel is within the dilation iff its squared distance to the
+mask is at most r^2); the square is a separable running maximum (``lax.reduce_window``)."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def dilate(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]
     if radius == 0:
         return mask
     if shape == "disk":
-        return squared_distance_transform(mask) <= radius * radius
+        return squared_distance_transform(mask, max_distance=radius) <= radius * radius
     window = (1,) * (mask.ndim - 2) + (2 * radius + 1, 2 * radius + 1)
     pad = [(0, 0)] * (mask.ndim - 2) + [(radius, radius), (radius, radius)]
     return jax.lax.reduce_window(mask, False, jax.lax.bitwise_or, window, (1,) * mask.ndim, pad)

@@ -10,6 +10,10 @@ from ._asf_amc import read_amc as read_amc
 from ._asf_amc import read_asf as read_asf
 from ._bvh import load_bvh as load_bvh
 from ._bvh import read_bvh as read_bvh
+from ._calibration import CalibrationFileError as CalibrationFileError
+from ._calibration import read_calibration as read_calibration
+from ._calibration import rodrigues as rodrigues
+from ._calibration import save_calibration as save_calibration
 from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
 from ._keypoints import KEYPOINT_LAYOUTS as KEYPOINT_LAYOUTS
@@ -34,7 +38,3 @@ from ._sequence import Sequence as Sequence
 from ._sequence import SequenceFileError as SequenceFileError
 from ._sequence import load_sequence as load_sequence
 from ._sequence import save_sequence as save_sequence
-from ._calibration import CalibrationFileError as CalibrationFileError
-from ._calibration import read_calibration as read_calibration
-from ._calibration import rodrigues as rodrigues
-from ._calibration import save_calibration as save_calibration

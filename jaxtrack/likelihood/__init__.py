@@ -18,6 +18,11 @@ from ._calibration import calibrate_shape as calibrate_shape
 from ._coarse import CoarseSilhouetteLikelihood as CoarseSilhouetteLikelihood
 from ._coarse import block_downsample as block_downsample
 from ._coarse import coarsen_likelihood as coarsen_likelihood
+from ._edges import EDGE_MAP_SCALE as EDGE_MAP_SCALE
+from ._edges import EdgeForegroundLikelihood as EdgeForegroundLikelihood
+from ._edges import make_edge_foreground_likelihood as make_edge_foreground_likelihood
+from ._edges import maps_from_images as maps_from_images
+from ._edges import maps_from_silhouettes as maps_from_silhouettes
 from ._ground import GroundPlanePrior as GroundPlanePrior
 from ._ground import ground_clearance as ground_clearance
 from ._ground import make_ground_prior as make_ground_prior

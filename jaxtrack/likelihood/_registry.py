@@ -20,6 +20,7 @@ from typing import Any
 
 from .._registries import Registry, check_name
 from ._base import AbstractLikelihood, ObservationPart
+from ._edges import make_edge_foreground_likelihood
 from ._keypoints import make_keypoint_likelihood
 from ._silhouette import make_silhouette_likelihood
 
@@ -37,6 +38,8 @@ class SceneInputs:
         window: the silhouette window requested (``"auto"``, None for dense, or (rows, cols)).
         keypoints: (C, T, 15, 3) 2-D detections of the 15 HumanEva joints (pixels u, v and a
             confidence in [0, 1]), the tracked frames, or None where the scene has none.
+        edges, foreground: (C, T, H, W) edge-proximity and foreground maps in [0, 1] (001's
+            observations), made by ``prepare_test`` for a recipe that observes them, else None.
     """
 
     body: Any
@@ -45,6 +48,8 @@ class SceneInputs:
     scale: float
     window: Any = "auto"
     keypoints: Any = None
+    edges: Any = None
+    foreground: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,7 +99,7 @@ class LikelihoodRecipe:
         return likelihood
 
 
-OBSERVATION_KINDS = ("silhouettes", "keypoints")
+OBSERVATION_KINDS = ("silhouettes", "keypoints", "edges", "foreground")
 
 _LIKELIHOODS: Registry[LikelihoodRecipe] = Registry("likelihood", LikelihoodRecipe, "register_likelihood")
 
@@ -151,3 +156,28 @@ def _silhouette_and_keypoints(inputs: SceneInputs, *, edge_width: float, sigma_p
 register_likelihood(LikelihoodRecipe(
     "silhouette+keypoints", "the silhouettes' likelihood times the keypoints' (independent cues: their log-likelihoods add)",
     _silhouette_and_keypoints, {"edge_width": 1.0, **_KEYPOINT_OPTIONS}, observes=("silhouettes", "keypoints")))
+
+
+def _edge_foreground(inputs: SceneInputs, *, points: int, edge_width: float, edges: bool, foreground: bool) -> AbstractLikelihood:
+    return make_edge_foreground_likelihood(inputs.body, inputs.rig, scale=inputs.scale, points=points, edge_width=edge_width,
+                                           use_edges=edges, use_foreground=foreground, dtype=inputs.body.radii.dtype)
+
+
+_EDGE_OPTIONS = {"points": 6, "edge_width": 1.0, "edges": True, "foreground": True}
+register_likelihood(LikelihoodRecipe(
+    "edge+foreground", "paper 001's edge term with occlusion weights and foreground term (001 eqs. 12-16), on edge maps "
+    "and foreground maps made from the file's images or silhouettes", _edge_foreground, _EDGE_OPTIONS,
+    observes=("edges", "foreground")))
+
+
+def _silhouette_edge_foreground(inputs: SceneInputs, *, edge_width: float, points: int, edges: bool,
+                                foreground: bool) -> AbstractLikelihood:
+    silhouettes = _silhouette(inputs, edge_width=edge_width)
+    return ObservationPart(silhouettes, "silhouettes") + _edge_foreground(inputs, points=points, edge_width=edge_width,
+                                                                           edges=edges, foreground=foreground)
+
+
+register_likelihood(LikelihoodRecipe(
+    "silhouette+edge+foreground", "the silhouettes' likelihood times 001's edge and foreground terms",
+    _silhouette_edge_foreground, {"edge_width": 1.0, "points": 6, "edges": True, "foreground": True},
+    observes=("silhouettes", "edges", "foreground")))

@@ -52,6 +52,8 @@ from ..likelihood import (
     get_likelihood,
     ground_clearance,
     make_ground_prior,
+    maps_from_images,
+    maps_from_silhouettes,
     sample_frames,
     with_body,
 )
@@ -84,11 +86,14 @@ def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.n
 
 def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...] = ("silhouettes",)) -> None:
     """A test sequence needs the observations its likelihood reads (``observes``: silhouettes,
-    keypoints), cameras and ground truth; raise ``ValueError`` if not."""
+    keypoints, and edge and foreground maps, which are made from the silhouettes and images),
+    cameras and ground truth; raise ``ValueError`` if not."""
     present = {"silhouettes": sequence.silhouettes is not None, "keypoints": sequence.keypoints2d is not None,
                "cameras": sequence.has_cameras}
     keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size"}
-    missing = [what for what in (*observes, "cameras") if not present[what]]
+    needed = ["silhouettes" if kind in ("edges", "foreground") else kind for kind in observes]
+    needed = list(dict.fromkeys([*needed, "cameras"]))
+    missing = [what for what in needed if not present[what]]
     if missing:
         raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)}, which the file lacks (key"
                          f"{'s' if len(missing) > 1 else ''} {'; '.join(keys[m] for m in missing)})")
@@ -378,10 +383,15 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
     check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
                   f"{name}'s initial pose (frame 0)")
+    edges = foreground = None
+    if {"edges", "foreground"} & set(recipe.observes):  # 001's maps, from the images' edges where the file has images
+        images = None if sequence.images is None else sequence.images[:, :frames]
+        edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(images, observed))
+        edges, foreground = np.asarray(edges), np.asarray(foreground)
     likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window,
-                                         keypoints=keypoints), **dict(likelihood_options or {}))
+                                         keypoints=keypoints, edges=edges, foreground=foreground), **dict(likelihood_options or {}))
     pixel_samples = _pixel_samples(pixel_samples, likelihood, recipe.name, width, image_height, name, say)
-    per_frame = {"silhouettes": observed, "keypoints": keypoints}  # each (C, T, ...) -> (T, C, ...)
+    per_frame = {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground}  # (C, T, ...) -> (T, C, ...)
     per_frame = {kind: np.moveaxis(per_frame[kind], 1, 0) for kind in recipe.observes}
     observations = per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
     initial_pose = truth_poses[0]

@@ -1,0 +1,85 @@
+"""Paper 001's edge and foreground likelihood (001 eqs. 12-16): bilinear map reading against
+SciPy, the costs' bounds, its maximum at the true pose of a rendered scene, its gradient against
+finite differences, and the registered recipes built by ``prepare_test``."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from jaxtrack.image import sample_bilinear
+from jaxtrack.likelihood import EdgeForegroundLikelihood, make_edge_foreground_likelihood, maps_from_silhouettes
+from jaxtrack.tracking import prepare_test
+
+from helpers import finite_difference_check, small_scene
+
+
+def test_bilinear_reading_is_scipys_inside_and_differentiable():
+    image = np.random.default_rng(0).random((6, 8))
+    points = np.array([[0.0, 0.0], [2.3, 4.7], [7.0, 5.0], [3.5, 1.25], [6.9, 0.1]])
+    expected = ndimage.map_coordinates(image, [points[:, 1], points[:, 0]], order=1)
+    np.testing.assert_allclose(np.asarray(sample_bilinear(image, jnp.asarray(points))), expected, atol=1e-12)
+    assert float(sample_bilinear(image, jnp.asarray([[9.5, 2.0]]))[0]) == 0.0  # outside: no evidence
+    finite_difference_check(lambda p: sample_bilinear(jnp.asarray(image), p), jnp.asarray([[2.3, 4.7], [3.4, 1.2]]),
+                            jnp.asarray([[0.3, -0.2], [0.1, 0.5]]))
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """The clean small walk (4 views, 40x30), its maps (T, C, H, W) and likelihood."""
+    motion, rig, seq = small_scene(noisy=False)
+    edges, foreground = maps_from_silhouettes(np.moveaxis(seq.silhouettes, 1, 0))
+    likelihood = make_edge_foreground_likelihood(seq.body(dtype=jnp.float64), rig, scale=1.0, dtype=jnp.float64)
+    return motion, {"edges": edges.astype(jnp.float64), "foreground": foreground.astype(jnp.float64)}, likelihood
+
+
+def test_the_costs_are_bounded_by_perfect_and_absent_evidence(scene):
+    motion, maps, likelihood = scene
+    pose = jnp.asarray(motion.pose[0], jnp.float64)
+    frame = jax.tree.map(lambda m: m[0], maps)
+    ones = jax.tree.map(jnp.ones_like, frame)
+    zeros = jax.tree.map(jnp.zeros_like, frame)
+    np.testing.assert_allclose(likelihood.costs(pose, ones), (0.0, 0.0), atol=1e-12)
+    sigma_e, sigma_fg = likelihood.costs(pose, zeros)
+    assert float(sigma_fg) == pytest.approx(1.0)
+    assert 0.2 < float(sigma_e) < 1.0  # the outline points other parts cover (joints, overlaps) weigh less (eq. 13)
+    edges_only = EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, use_foreground=False)
+    assert float(edges_only.costs(pose, zeros)[1]) == 0.0
+
+
+def test_the_true_pose_beats_perturbed_ones(scene):
+    motion, maps, likelihood = scene
+    for t in (0, 4):
+        truth = jnp.asarray(motion.pose[t], jnp.float64)
+        noise = 0.12 * jax.random.normal(jax.random.key(t), (40, truth.shape[0]), jnp.float64)
+        poses = jnp.concatenate([truth[None], truth + noise.at[:, :3].multiply(0.3)])
+        scores = np.asarray(eqx.filter_jit(lambda lik, p, o: lik.log_likelihood(p, o))(likelihood, poses,
+                                                                                      jax.tree.map(lambda m, t=t: m[t], maps)))
+        assert np.mean(scores[1:] < scores[0]) >= 0.9, (t, np.mean(scores[1:] < scores[0]))
+
+
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
+def test_the_gradient_matches_finite_differences(scene):
+    motion, maps, likelihood = scene
+    frame = jax.tree.map(lambda m: m[2], maps)
+    pose = jnp.asarray(motion.pose[2], jnp.float64) + 0.02
+    direction = jnp.asarray(np.random.default_rng(1).standard_normal(pose.shape[0]))
+    finite_difference_check(lambda p: likelihood.log_likelihood(p[None], frame)[0], pose, direction, eps=1e-6, rtol=1e-4)
+
+
+def test_prepare_test_builds_001s_maps_and_recipes():
+    _, _, seq = small_scene(noisy=False)
+    scene = prepare_test(seq, "edges", key=jax.random.key(0), likelihood="edge+foreground")
+    assert set(scene.observations) == {"edges", "foreground"}
+    assert scene.observations["edges"].shape == (8, 4, 30, 40) and float(scene.observations["edges"].max()) == pytest.approx(1.0)
+    assert isinstance(scene.likelihood, EdgeForegroundLikelihood)
+    both = prepare_test(seq, "both", key=jax.random.key(0), likelihood="silhouette+edge+foreground")
+    assert set(both.observations) == {"silhouettes", "edges", "foreground"}
+    frame = jax.tree.map(lambda x: x[0], both.observations)
+    value = both.likelihood.log_likelihood(both.initial_pose[None], frame)
+    parts = sum(term.log_likelihood(both.initial_pose[None], frame) for term in both.likelihood.terms)
+    np.testing.assert_allclose(np.asarray(value), np.asarray(parts), rtol=1e-6)
+    with pytest.raises(ValueError, match="needs silhouettes"):
+        prepare_test(seq.replace(silhouettes=None), "x", key=jax.random.key(0), likelihood="edge+foreground")
