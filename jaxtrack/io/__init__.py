@@ -38,3 +38,6 @@ from ._sequence import Sequence as Sequence
 from ._sequence import SequenceFileError as SequenceFileError
 from ._sequence import load_sequence as load_sequence
 from ._sequence import save_sequence as save_sequence
+from ._video import MultiViewVideo as MultiViewVideo
+from ._video import VideoFileError as VideoFileError
+from ._video import sample_frames_evenly as sample_frames_evenly
