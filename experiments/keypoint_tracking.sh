@@ -16,6 +16,7 @@ FRAMES=${FRAMES:-100}
 METHODS=${METHODS:-sir apf mrpf latentpf}
 SIZES=${SIZES:-160x120 320x240}
 VIEWS=${VIEWS:-4 3}
+LIKELIHOODS=${LIKELIHOODS:-silhouette keypoints silhouette+keypoints}  # also: edge+foreground silhouette+edge+foreground
 for f in 35_01 35_02 35_03 35_29; do
     [ -f "$CMU/$f.npz" ] || { echo "no $CMU/$f.npz: run benchmarks/cmu_experiment.sh first (or set CMU=...)" >&2; exit 2; }
 done
@@ -25,7 +26,7 @@ for size in $SIZES; do
         scene="$OUT/walk_${size}_${views}views.npz"
         [ -f "$scene" ] || jaxtrack scene "$CMU/35_29.npz" "$scene" --frames "$FRAMES" --width "${size%x*}" --height "${size#*x}" \
             --views "$views" --seed 1 --keypoints --keypoint-noise 5 --keypoint-dropped 0.1
-        for likelihood in silhouette keypoints silhouette+keypoints; do
+        for likelihood in $LIKELIHOODS; do
             out="$OUT/${size}_${views}views_${likelihood}"
             [ -f "$out/table.md" ] || jaxtrack experiment --train "$CMU/35_01.npz" "$CMU/35_02.npz" --validation "$CMU/35_03.npz" \
                 --test "$scene" --methods $METHODS --runs "$RUNS" --budget "$BUDGET" --likelihood "$likelihood" --out "$out"
