@@ -41,14 +41,16 @@ def test_the_costs_are_bounded_by_perfect_and_absent_evidence(scene):
     frame = jax.tree.map(lambda m: m[0], maps)
     ones = jax.tree.map(jnp.ones_like, frame)
     zeros = jax.tree.map(jnp.zeros_like, frame)
-    np.testing.assert_allclose(likelihood.costs(pose, ones), (0.0, 0.0), atol=1e-12)
-    sigma_e, sigma_fg = likelihood.costs(pose, zeros)
+    costs = eqx.filter_jit(lambda lik, p, o: lik.costs(p, o))
+    np.testing.assert_allclose(costs(likelihood, pose, ones), (0.0, 0.0), atol=1e-12)
+    sigma_e, sigma_fg = costs(likelihood, pose, zeros)
     assert float(sigma_fg) == pytest.approx(1.0)
     assert 0.2 < float(sigma_e) < 1.0  # the outline points other parts cover (joints, overlaps) weigh less (eq. 13)
     edges_only = EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, use_foreground=False)
-    assert float(edges_only.costs(pose, zeros)[1]) == 0.0
+    assert float(costs(edges_only, pose, zeros)[1]) == 0.0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_the_true_pose_beats_perturbed_ones(scene):
     motion, maps, likelihood = scene
     for t in (0, 4):
@@ -69,6 +71,7 @@ def test_the_gradient_matches_finite_differences(scene):
     finite_difference_check(lambda p: likelihood.log_likelihood(p[None], frame)[0], pose, direction, eps=1e-6, rtol=1e-4)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_prepare_test_builds_001s_maps_and_recipes():
     _, _, seq = small_scene(noisy=False)
     scene = prepare_test(seq, "edges", key=jax.random.key(0), likelihood="edge+foreground")

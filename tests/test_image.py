@@ -31,7 +31,7 @@ from jaxtrack.image import (
 from helpers import finite_difference_check
 
 
-@pytest.mark.parametrize("sigma", [0.7, 1.5, (2.0, 0.8), 6.0])
+@pytest.mark.parametrize("sigma", [0.7, (2.0, 0.8), 6.0])
 def test_gaussian_blur_is_scipys(sigma):
     image = np.random.default_rng(0).random((2, 17, 23))
     expected = np.stack([ndimage.gaussian_filter(x, sigma) for x in image])  # sigma 6: a kernel wider than the image

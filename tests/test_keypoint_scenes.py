@@ -96,6 +96,7 @@ def test_keypoints_in_a_sequence_file_round_trip_crop_and_resize(scene, tmp_path
         seq.replace(keypoints2d=nan)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_prepare_test_builds_the_registered_keypoint_likelihoods(scene):
     rig, seq = scene
     key = jax.random.key(0)

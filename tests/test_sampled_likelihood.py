@@ -18,6 +18,10 @@ from jaxtrack.likelihood import (
 from helpers import small_scene
 
 
+# one worker builds the module's 64x48 scene (about 20 s cold) and runs every test that reads it
+pytestmark = pytest.mark.xdist_group("sampled_likelihood_scene")
+
+
 @pytest.fixture(scope="module")
 def scene():
     motion, rig, seq = small_scene(num_frames=3, width=64, height=48)

@@ -14,6 +14,8 @@ an edge, about 0.14 at 2 s.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -73,7 +75,11 @@ def canny_edges(image, sigma: float = 1.0, low: float = 0.1, high: float = 0.2) 
     gradient magnitude, 0 <= low <= high <= 1). An image without contrast has no edges."""
     if not (0 <= low <= high <= 1):
         raise ValueError(f"thresholds must satisfy 0 <= low <= high <= 1 (fractions of the largest gradient), got {low}, {high}")
-    image = _check_image(image)
+    return _canny(_check_image(image), float(sigma), float(low), float(high))
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2, 3))
+def _canny(image, sigma: float, low: float, high: float):
     dx, dy = sobel(gaussian_blur(image, sigma))
     thin = non_maximum_suppression(dx, dy)
     scale = jnp.max(jnp.sqrt(dx**2 + dy**2), axis=(-2, -1), keepdims=True)
@@ -89,6 +95,11 @@ def edge_proximity(edges, scale: float = 2.0) -> Float[Array, "... H W"]:
     image without edges."""
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"scale must be a positive number of pixels, got {scale!r}")
+    return _proximity(jnp.asarray(edges, bool), float(scale))
+
+
+@functools.partial(jax.jit, static_argnums=1)
+def _proximity(edges, scale: float):
     reach = int(np.ceil(4.0 * scale))  # beyond 4 scales the map is below 3.4e-4: 0
     squared = squared_distance_transform(edges, max_distance=reach)
     return jnp.where(jnp.isfinite(squared), jnp.exp(-squared / (2.0 * scale * scale)), 0.0)

@@ -6,6 +6,8 @@ and grad apply."""
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -66,15 +68,24 @@ def gaussian_blur(image, sigma: float | tuple[float, float], *, truncate: float 
     columns)); ``scipy.ndimage.gaussian_filter(image, sigma)`` over the last two axes."""
     image = _check_image(image)
     sigma_rows, sigma_cols = (sigma, sigma) if np.isscalar(sigma) else tuple(sigma)
-    out = correlate1d(image, gaussian_kernel(sigma_rows, truncate), axis=-2)
-    return correlate1d(out, gaussian_kernel(sigma_cols, truncate), axis=-1)
+    rows, cols = gaussian_kernel(sigma_rows, truncate), gaussian_kernel(sigma_cols, truncate)  # checked here, eagerly
+    return _blur(image, tuple(rows.tolist()), tuple(cols.tolist()))
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _blur(image, rows: tuple, cols: tuple):
+    return correlate1d(correlate1d(image, rows, axis=-2), cols, axis=-1)
 
 
 def sobel(image) -> tuple[Float[Array, "... H W"], Float[Array, "... H W"]]:
     """The Sobel derivatives ``(d/dx, d/dy)`` of (..., H, W) images, x along the columns and y
     down the rows (unnormalised: a unit step gives 4); ``scipy.ndimage.sobel(image, axis=-1)``
     and ``(image, axis=-2)``."""
-    image = _check_image(image)
+    return _sobel(_check_image(image))
+
+
+@jax.jit
+def _sobel(image):
     derivative, smooth = np.array([-1.0, 0.0, 1.0]), np.array([1.0, 2.0, 1.0])
     dx = correlate1d(correlate1d(image, derivative, axis=-1), smooth, axis=-2)
     dy = correlate1d(correlate1d(image, derivative, axis=-2), smooth, axis=-1)

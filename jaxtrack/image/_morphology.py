@@ -6,6 +6,8 @@ mask is at most r^2); the square is a separable running maximum (``lax.reduce_wi
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -28,7 +30,11 @@ def _check(mask, radius: int, shape: str):
 
 def dilate(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
     """Pixels within ``radius`` of the mask (a disk: Euclidean; a square: the (2r + 1)^2 box)."""
-    mask = _check(mask, radius, shape)
+    return _dilate(_check(mask, radius, shape), radius, shape)
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _dilate(mask, radius: int, shape: str):
     if radius == 0:
         return mask
     if shape == "disk":
@@ -57,8 +63,12 @@ def opening(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"
 def closing(mask, radius: int = 1, shape: str = "disk") -> Bool[Array, "... H W"]:
     """Dilation then erosion: fills holes and gaps smaller than the structuring element (the
     image border, unlike SciPy's, does not erode what the dilation brought to it)."""
-    mask = _check(mask, radius, shape)
+    return _closing(_check(mask, radius, shape), radius, shape)
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _closing(mask, radius: int, shape: str):
     pad = [(0, 0)] * (mask.ndim - 2) + [(radius, radius), (radius, radius)]
     padded = jnp.pad(mask, pad)
-    closed = ~dilate(~dilate(padded, radius, shape), radius, shape)
+    closed = ~_dilate(~_dilate(padded, radius, shape), radius, shape)
     return closed[..., radius : radius + mask.shape[-2], radius : radius + mask.shape[-1]]
