@@ -17,7 +17,6 @@ from jaxtrack.likelihood import (
 
 from helpers import small_scene
 
-
 # one worker builds the module's 64x48 scene (about 20 s cold) and runs every test that reads it
 pytestmark = pytest.mark.xdist_group("sampled_likelihood_scene")
 
