@@ -78,19 +78,39 @@ def _scene(args) -> int:
 
     from .camera import default_rig
     from .data import NO_NOISE, SilhouetteNoise, scene_from_sequence
-    from .io import check_output, load_sequence, save_sequence
+    from .io import check_folder, check_output, load_sequence, save_sequence
 
-    args.out = check_output(args.out, [args.source], suffix=".npz")
+    if args.rgb != bool(args.video):
+        raise ValueError("--rgb films the scene into videos: give both --rgb and --video OUTDIR")
+    if args.video:
+        if args.out:
+            raise ValueError(f"--video writes its files into {args.video}; drop the output file {args.out}")
+        check_folder(args.video)
+    elif not args.out:
+        raise ValueError("give the output sequence file (or --rgb --video OUTDIR)")
+    else:
+        args.out = check_output(args.out, [args.source], suffix=".npz")
     sequence = load_sequence(args.source)
     rig = default_rig(args.width, args.height, num_views=args.views)
-    noise = NO_NOISE if args.clean else SilhouetteNoise()
+    noise = NO_NOISE if args.clean or args.video else SilhouetteNoise()
     detector = None
-    if args.keypoints:
+    if args.keypoints or args.video:
         from .data import DetectorNoise, detect_keypoints
 
         detector = DetectorNoise(noise_px=args.keypoint_noise, dropped=args.keypoint_dropped, swapped=args.keypoint_swapped)
     scene = scene_from_sequence(jax.random.key(args.seed), sequence, rig, noise, start=args.start, frames=args.frames,
-                                centre=not args.no_centre, progress=True)
+                                centre=not args.no_centre, progress=not args.video)
+    if args.video:
+        from .data import write_rgb_scene
+
+        paths = write_rgb_scene(args.video, jax.random.key(args.seed), scene, detector=detector,
+                                background_frames=args.background_frames, progress=True)
+        print(f"wrote {scene.num_frames} frames at {scene.fps:g} Hz of {args.views} {args.width}x{args.height} cameras into "
+              f"{args.video}: videos {', '.join(os.path.basename(p) for p in paths['videos'])}"
+              + (f", {args.background_frames} background frames per camera in background/" if args.background_frames else "")
+              + f", calibration.json, keypoints.npz ({detector.noise_px:g} px noise, {detector.dropped:.0%} dropped) and truth.npz "
+              "(poses, joints and the true silhouettes)")
+        return 0
     if detector is not None:
         scene = scene.replace(keypoints2d=detect_keypoints(jax.random.fold_in(jax.random.key(args.seed), 1), scene.joints3d,
                                                            scene.rig(), detector))
@@ -103,7 +123,7 @@ def _scene(args) -> int:
 
 
 def _keypoints(args) -> int:
-    from .io import check_output, load_keypoints, load_sequence, read_coco_keypoints, read_openpose_folder, save_sequence
+    from .io import check_output, load_sequence, read_keypoint_sources, save_sequence
 
     args.out = check_output(args.out, [args.sequence, *args.sources, *(args.calibration or [])], suffix=".npz")
     sequence = load_sequence(args.sequence)
@@ -120,26 +140,11 @@ def _keypoints(args) -> int:
     if not sequence.has_cameras:
         raise ValueError(f"{args.sequence}: has no cameras; give the calibration (--calibration), 2-D keypoints are read per camera")
     views = len(sequence.image_size)
-    if args.format == "npz":
-        if len(args.sources) != 1:
-            raise ValueError("--format npz reads one file holding every camera's keypoints")
-        keypoints, names = load_keypoints(args.sources[0])
-        if sequence.camera_names is not None and tuple(names) != tuple(str(n) for n in sequence.camera_names):
-            raise ValueError(f"{args.sources[0]}: cameras {list(names)}, but {args.sequence} has {list(sequence.camera_names)}")
-    else:
-        if len(args.sources) != views:
-            raise ValueError(f"{args.sequence} has {views} cameras: give one {args.format} source per camera, in its order "
-                             f"(got {len(args.sources)})")
-        read = read_openpose_folder if args.format == "openpose" else read_coco_keypoints
-        layout = args.layout or ("body25" if args.format == "openpose" else "coco17")
-        per_view = [read(source, layout) for source in args.sources]
-        frames = {len(k) for k in per_view}
-        if len(frames) != 1:
-            raise ValueError("the cameras' keypoint sources hold different numbers of frames: "
-                             + ", ".join(f"{s} {len(k)}" for s, k in zip(args.sources, per_view)))
-        import numpy as np
-
-        keypoints = np.stack(per_view)
+    names = None if sequence.camera_names is None else [str(n) for n in sequence.camera_names]
+    keypoints = read_keypoint_sources(args.sources, args.format, layout=args.layout,
+                                      camera_names=names or (None if args.format == "npz" else [str(c) for c in range(views)]))
+    if keypoints.shape[0] != views:
+        raise ValueError(f"{args.sources[0]}: keypoints of {keypoints.shape[0]} cameras, {args.sequence} has {views}")
     if keypoints.shape[1] != sequence.num_frames:
         raise ValueError(f"the keypoints hold {keypoints.shape[1]} frames, {args.sequence} {sequence.num_frames}")
     save_sequence(args.out, sequence.replace(keypoints2d=keypoints))
@@ -269,6 +274,33 @@ def _body_choice(args) -> str:
     return args.body or "auto"
 
 
+def _video_test(args):
+    """``track --video``: the calibration, keypoints and videos read into a test sequence."""
+    import numpy as np
+
+    from .io import read_calibration, read_keypoint_sources
+    from .likelihood import get_likelihood
+    from .tracking import sequence_from_video
+
+    if args.test:
+        raise ValueError(f"give a test sequence file ({args.test}) or --video, not both")
+    if not args.calibration:
+        raise ValueError("--video needs the cameras: --calibration FILE [FILE ...] (JSON, OpenCV YAML/XML or TOML)")
+    rig = read_calibration(args.calibration, units=args.units, up=args.up, dtype=np.float64)
+    print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
+    keypoints = None
+    if args.keypoints:
+        keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names)
+    observes = get_likelihood(args.likelihood).observes
+    read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
+                               keep_images=bool({"edges", "foreground"} & set(observes)), say=print)
+    print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['background']:.1f} s "
+          f"(decoding {read.seconds['decode']:.1f} s)")
+    if read.stopped:
+        print(f"warning: the videos' frames from {read.sequence.num_frames} on are not tracked: {read.stopped}", file=sys.stderr)
+    return read.sequence, read.stopped
+
+
 def _track(args) -> int:
     import jax
 
@@ -280,40 +312,79 @@ def _track(args) -> int:
     from .manifold import load_model
     from .tracking import TrackingSpec, track_sequence
 
-    spec = TrackingSpec(**_spec_fields(args))
-    spec.check_method(args.method)
-    args.out = check_output(args.out, [args.test, args.validation, args.model], suffix=".npz")
-    sequence = load_sequence(args.test)
+    inputs = [args.test, args.validation, args.model, *(args.video or []), *(args.background or []), *(args.calibration or []),
+              *(args.keypoints or [])]
+    args.out = check_output(args.out, inputs, suffix=".npz")
+    partial = args.out[: -len(".npz")] + ".partial.npz"
+    check_output(partial, inputs)
+    if args.overlay:
+        if not args.video:
+            raise ValueError("--overlay draws the estimate over the videos: it needs --video")
+        args.overlay = check_output(args.overlay, inputs, suffix=".mp4")
     validation = load_sequence(args.validation)
     model, header = load_model(args.model)
-    partial = args.out[: -len(".npz")] + ".partial.npz"
-    check_output(partial, [args.test, args.validation, args.model])
+    stopped = None
+    if args.video:
+        sequence, stopped = _video_test(args)
+        name = os.path.basename(args.video[0])
+    elif args.test:
+        sequence = load_sequence(args.test)
+        name = os.path.basename(args.test)
+    else:
+        raise ValueError("give a test sequence file, or the videos (--video ... --calibration ...)")
+    has_truth = sequence.joints3d is not None or sequence.pose is not None
+    start = args.start or ("truth" if has_truth else "auto")
+    spec = TrackingSpec(**_spec_fields(args), start=start)
+    spec.check_method(args.method)
+    kept = sequence.replace(silhouettes=None, images=None) if args.video else sequence
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
         done = len(poses)
-        save_sequence(partial, sequence.cropped(done).replace(pose=poses, joints3d=joints))
+        save_sequence(partial, _estimate_sequence(kept.cropped(done), poses, joints))
         print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
 
+    chunked = args.chunk_frames and args.chunk_frames < sequence.num_frames
     poses, joints, info = track_sequence(
-        sequence, model, header, args.method, validation, spec, seed=args.seed, name=os.path.basename(args.test),
-        chunk_frames=args.chunk_frames if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
-        on_chunk=save_so_far if args.chunk_frames and args.chunk_frames < sequence.num_frames else None,
+        sequence, model, header, args.method, validation, spec, seed=args.seed, name=name,
+        chunk_frames=args.chunk_frames if chunked else None, on_chunk=save_so_far if chunked else None,
     )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
-    out = sequence.replace(pose=poses, joints3d=joints)
-    save_sequence(args.out, out)
+    save_sequence(args.out, _estimate_sequence(kept, poses, joints))
     if os.path.exists(partial):
         os.remove(partial)
     degenerate = float(np.mean(np.asarray(info.degenerate)))
     print(f"wrote {args.out}: estimated pose {poses.shape} and joints3d {joints.shape}; mean ESS {float(np.mean(info.ess)):.1f}; "
           f"degenerate frames {100 * degenerate:.0f} %")
+    if args.overlay:
+        from .body import humaneva_skeleton
+        from .viz import write_overlay_video
+
+        write_overlay_video(args.overlay, args.video, sequence.rig(), joints, humaneva_skeleton().parents, fps=sequence.fps)
+        print(f"wrote {args.overlay}: the estimate over the videos")
     if degenerate > args.max_degenerate:
         print(f"jaxtrack track: error: on {100 * degenerate:.0f} % of the frames every particle's likelihood was -inf or NaN, "
               f"so the filter ran on uniform weights (tracked blind; --max-degenerate {args.max_degenerate:g}); check that every "
               "camera sees the person and that the silhouettes are not empty", file=sys.stderr)
         return 3
+    if stopped:
+        print(f"jaxtrack track: error: tracked {len(poses)} frames and stopped: {stopped}", file=sys.stderr)
+        return 4
     return 0
+
+
+def _estimate_sequence(sequence, poses, joints):
+    """The test sequence with the estimates as its pose and joints (the HumanEva skeleton's
+    names where the file has none)."""
+    import numpy as np
+
+    from .body import humaneva_skeleton
+
+    skeleton = humaneva_skeleton()
+    named = {} if sequence.joint_names is not None else {
+        "joint_names": np.asarray(skeleton.joint_names), "parents": np.asarray(skeleton.parents),
+        "pose_layout": np.asarray(skeleton.pose_layout)}
+    return sequence.replace(pose=poses, joints3d=joints, **named)
 
 
 _SCALE = 100.0
@@ -451,7 +522,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     scene = sub.add_parser("scene", help="render a sequence's motion into synthetic multi-view silhouettes (a test sequence)")
     scene.add_argument("source", help="a sequence file with 'pose' (e.g. from 'jaxtrack convert')")
-    scene.add_argument("out", help="output sequence file (.npz) with cameras and silhouettes")
+    scene.add_argument("out", nargs="?", help="output sequence file (.npz) with cameras and silhouettes (not with --video)")
     scene.add_argument("--start", type=int, default=0, help="first frame to keep (default: %(default)s)")
     scene.add_argument("--frames", type=int, help="frames to keep (default: to the end)")
     scene.add_argument("--width", type=int, default=80, help="image width in pixels (default: %(default)s)")
@@ -468,9 +539,18 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the probability that a joint is missing (default: %(default)s)")
     scene.add_argument("--keypoint-swapped", type=float, default=0.0, metavar="P",
                        help="the probability that a view's frame has left and right exchanged (default: %(default)s)")
+    scene.add_argument("--rgb", action="store_true",
+                       help="film the scene in colour: the solid body (not the tracker's capsules) over a real photograph, "
+                            "shaded, with cast shadows, a lighting change and sensor noise (needs --video)")
+    scene.add_argument("--video", metavar="OUTDIR",
+                       help="with --rgb: write one video per camera, background videos, calibration.json, keypoints.npz "
+                            "(--keypoint-* noise) and truth.npz into this folder")
+    scene.add_argument("--background-frames", type=int, default=30,
+                       help="with --video: frames of the empty scene per camera, for background subtraction (default: %(default)s)")
     scene.set_defaults(run=_scene)
 
-    from .io import KEYPOINT_LAYOUTS
+    from .io import KEYPOINT_FORMATS, KEYPOINT_LAYOUTS
+    from .tracking import START_CHOICES
 
     keypoints = sub.add_parser("keypoints", help="add a 2-D pose detector's keypoints (OpenPose, COCO JSON) to a sequence file")
     keypoints.add_argument("sequence", help="a sequence file with cameras")
@@ -542,7 +622,31 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.set_defaults(run=_experiment)
 
     track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
-    track.add_argument("test", help="test sequence file with silhouettes, cameras and (for the initial pose) ground truth")
+    track.add_argument("test", nargs="?",
+                       help="test sequence file with silhouettes (or keypoints) and cameras; its ground truth, if any, is the "
+                            "start (--start) and scores the result (or give --video)")
+    track.add_argument("--video", nargs="+", metavar="VIDEO",
+                       help="instead of a test file: one video file or image folder per camera, in the calibration's order; "
+                            "silhouettes by background subtraction, the start found automatically")
+    track.add_argument("--background", nargs="+", metavar="VIDEO",
+                       help="with --video: one video or folder of the empty scene per camera (default: the median of frames "
+                            "spread over the videos themselves)")
+    track.add_argument("--calibration", nargs="+", metavar="FILE",
+                       help="with --video: the cameras (documented JSON, OpenCV YAML/XML, aniposelib/Pose2Sim TOML)")
+    track.add_argument("--units", choices=("m", "mm"), help="the calibration's length unit (default: told from the cameras)")
+    track.add_argument("--up", help="the calibration world's up axis, e.g. z, y, -y (default: told from the cameras)")
+    track.add_argument("--keypoints", nargs="+", metavar="SOURCE",
+                       help="with --video: a detector's 2-D keypoints, one .npz of every camera or one OpenPose folder / COCO "
+                            "JSON per camera (--keypoint-format); read by the keypoint likelihoods and the automatic start")
+    track.add_argument("--keypoint-format", choices=KEYPOINT_FORMATS, default="npz", help="(default: %(default)s)")
+    track.add_argument("--keypoint-layout", choices=tuple(KEYPOINT_LAYOUTS),
+                       help="the detector's layout (default: body25 for openpose, coco17 for coco)")
+    track.add_argument("--frames", type=int, help="with --video: track at most this many frames")
+    track.add_argument("--fps", type=float, help="with --video of image folders: their frame rate")
+    track.add_argument("--start", choices=START_CHOICES,
+                       help="truth: frame 0's ground truth; auto: found from the first frame's images by an annealed search "
+                            "over the model's latent space (default: truth when the test file has it, else auto)")
+    track.add_argument("--overlay", metavar="MP4", help="with --video: also write the estimate drawn over the videos")
     track.add_argument("--model", required=True,
                        help="a model file from 'jaxtrack fit' (a gpdm for gpapf; mrpf-alg1 needs a bc-gplvm; glegbpf a gle, tle or le)")
     track.add_argument("--validation", required=True,

@@ -160,7 +160,7 @@ def test_the_command_line_adds_detector_files_and_synthetic_detections(scene, tm
         np.testing.assert_allclose(read[:, :, J[joint]], seq.keypoints2d[:, :, J[joint]], atol=1e-4)
     assert "wrote" in capsys.readouterr().out
     assert main(["keypoints", path, str(tmp_path / "x.npz"), *folders[:3], "--layout", "coco18"]) == 2
-    assert "has 4 cameras: give one openpose source per camera" in capsys.readouterr().err
+    assert "4 cameras: give one openpose keypoint source per camera" in capsys.readouterr().err
     # a joints-only file and the cameras from a calibration file
     from jaxtrack.io import CAMERA_KEYS, save_calibration
 

@@ -10,6 +10,12 @@ from ._gait import SubjectStyle as SubjectStyle
 from ._gait import SyntheticMotion as SyntheticMotion
 from ._gait import generate_motion as generate_motion
 from ._gait import random_subject as random_subject
+from ._rgb_scene import PART_COLOURS as PART_COLOURS
+from ._rgb_scene import PhotoSettings as PhotoSettings
+from ._rgb_scene import background_photo as background_photo
+from ._rgb_scene import default_background_path as default_background_path
+from ._rgb_scene import render_rgb as render_rgb
+from ._rgb_scene import write_rgb_scene as write_rgb_scene
 from ._scene import NO_NOISE as NO_NOISE
 from ._scene import SilhouetteNoise as SilhouetteNoise
 from ._scene import build_scene as build_scene

@@ -9,6 +9,7 @@ no Sobel, edges, distance transform or morphology (docs/libraries.md)."""
 from ._background import BackgroundModel as BackgroundModel
 from ._background import Foreground as Foreground
 from ._background import fit_background as fit_background
+from ._background import lighting_gain as lighting_gain
 from ._background import subtract_background as subtract_background
 from ._colour import LUMA_WEIGHTS as LUMA_WEIGHTS
 from ._colour import rgb_to_chromaticity as rgb_to_chromaticity

@@ -16,6 +16,7 @@ from ._calibration import rodrigues as rodrigues
 from ._calibration import save_calibration as save_calibration
 from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
+from ._keypoints import KEYPOINT_FORMATS as KEYPOINT_FORMATS
 from ._keypoints import KEYPOINT_LAYOUTS as KEYPOINT_LAYOUTS
 from ._keypoints import KeypointLayout as KeypointLayout
 from ._keypoints import check_keypoints as check_keypoints
@@ -23,6 +24,7 @@ from ._keypoints import follow_person as follow_person
 from ._keypoints import get_keypoint_layout as get_keypoint_layout
 from ._keypoints import load_keypoints as load_keypoints
 from ._keypoints import read_coco_keypoints as read_coco_keypoints
+from ._keypoints import read_keypoint_sources as read_keypoint_sources
 from ._keypoints import read_openpose_folder as read_openpose_folder
 from ._keypoints import save_keypoints as save_keypoints
 from ._mocap import MotionCapture as MotionCapture
@@ -40,4 +42,5 @@ from ._sequence import load_sequence as load_sequence
 from ._sequence import save_sequence as save_sequence
 from ._video import MultiViewVideo as MultiViewVideo
 from ._video import VideoFileError as VideoFileError
+from ._video import VideoWriter as VideoWriter
 from ._video import sample_frames_evenly as sample_frames_evenly

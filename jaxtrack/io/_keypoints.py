@@ -242,3 +242,39 @@ def check_keypoints(keypoints, num_views: int, *, where: str = "keypoints") -> n
     if np.any(array[..., 2] < 0) or np.any(array[..., 2] > 1):
         raise MotionFileError(where, None, "keypoint confidences must lie in [0, 1]")
     return array
+
+
+KEYPOINT_FORMATS = ("npz", "openpose", "coco")
+
+
+def read_keypoint_sources(sources, file_format: str = "npz", *, layout: str | None = None, camera_names=None) -> np.ndarray:
+    """(C, T, 15, 3) HumanEva keypoints from a detector's files: one documented ``.npz`` holding
+    every camera (``file_format="npz"``; its camera names must equal ``camera_names`` when
+    given), or one source per camera in the cameras' order: an OpenPose folder of per-frame
+    JSON files (``"openpose"``, ``layout`` default ``body25``) or a COCO keypoint JSON
+    (``"coco"``, default ``coco17``).
+
+    Raises:
+        ValueError: on an unknown format, a count of sources that does not match the cameras,
+            or cameras whose sources hold different numbers of frames.
+    """
+    sources = [os.fspath(s) for s in sources]
+    if file_format not in KEYPOINT_FORMATS:
+        raise ValueError(f"keypoint format must be one of {KEYPOINT_FORMATS}, got {file_format!r}")
+    names = None if camera_names is None else [str(n) for n in camera_names]
+    if file_format == "npz":
+        if len(sources) != 1:
+            raise ValueError(f"the npz keypoint format is one file holding every camera's keypoints, got {len(sources)} files")
+        keypoints, found = load_keypoints(sources[0])
+        if names is not None and list(found) != names:
+            raise ValueError(f"{sources[0]}: keypoints of cameras {list(found)}, but the cameras are {names}")
+        return keypoints
+    if names is not None and len(sources) != len(names):
+        raise ValueError(f"{len(names)} cameras: give one {file_format} keypoint source per camera, in their order "
+                         f"(got {len(sources)})")
+    read = read_openpose_folder if file_format == "openpose" else read_coco_keypoints
+    per_view = [read(source, layout or ("body25" if file_format == "openpose" else "coco17")) for source in sources]
+    if len({len(k) for k in per_view}) != 1:
+        raise ValueError("the cameras' keypoint sources hold different numbers of frames: "
+                         + ", ".join(f"{s} {len(k)}" for s, k in zip(sources, per_view)))
+    return np.stack(per_view)

@@ -52,9 +52,17 @@ from ._registry import unregister_tracker as unregister_tracker
 from ._sir import make_sir as make_sir
 from ._sir import sir_filter as sir_filter
 from ._spec import TrackingSpec as TrackingSpec
+from ._start import START_CHOICES as START_CHOICES
+from ._start import StartSearch as StartSearch
+from ._start import automatic_start as automatic_start
+from ._start import mask_centroids as mask_centroids
+from ._start import root_guess as root_guess
+from ._start import triangulate as triangulate
 from ._subject import BODY_CHOICES as BODY_CHOICES
 from ._subject import BODY_SOURCES as BODY_SOURCES
 from ._subject import SubjectBody as SubjectBody
 from ._subject import check_offsets_match_joints as check_offsets_match_joints
 from ._subject import limb_lengths_of as limb_lengths_of
 from ._subject import subject_body as subject_body
+from ._video_input import VideoInput as VideoInput
+from ._video_input import sequence_from_video as sequence_from_video

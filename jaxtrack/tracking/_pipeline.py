@@ -60,11 +60,14 @@ from ..likelihood import (
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
+from ._start import START_CHOICES, StartSearch, automatic_start
 from ._subject import SubjectBody, limb_lengths_of, subject_body
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
 PIXEL_SAMPLE_TAG = 2**31 - 2  # fold_in tag of a test scene's pixel-sample key
+START_TAG = 2**31 - 3  # fold_in tag of the automatic start's search key
+
 
 
 def sequence_poses(sequence: Sequence, name: str, *, key: PRNGKeyArray) -> np.ndarray:
@@ -84,10 +87,11 @@ def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.n
     return np.asarray(forward_kinematics(skeleton, jnp.asarray(poses, skeleton.offsets.dtype)), np.float64)
 
 
-def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...] = ("silhouettes",)) -> None:
+def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...] = ("silhouettes",), *,
+                        truth: bool = True) -> None:
     """A test sequence needs the observations its likelihood reads (``observes``: silhouettes,
     keypoints, and edge and foreground maps, which are made from the silhouettes and images),
-    cameras and ground truth; raise ``ValueError`` if not."""
+    cameras and (with ``truth``) ground truth; raise ``ValueError`` if not."""
     present = {"silhouettes": sequence.silhouettes is not None, "keypoints": sequence.keypoints2d is not None,
                "cameras": sequence.has_cameras}
     keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size"}
@@ -97,7 +101,7 @@ def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...]
     if missing:
         raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)}, which the file lacks (key"
                          f"{'s' if len(missing) > 1 else ''} {'; '.join(keys[m] for m in missing)})")
-    if sequence.joints3d is None and sequence.pose is None:
+    if truth and sequence.joints3d is None and sequence.pose is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
 
 
@@ -232,8 +236,8 @@ class TestScene:
     likelihood: object
     observations: object  # (T, C, H, W) float32 silhouettes, or a PixelSample with a leading T axis
     initial_pose: jax.Array  # (D,) float32
-    truth_poses: np.ndarray  # (T, D)
-    truth_joints: np.ndarray  # (T, J, 3)
+    truth_poses: np.ndarray | None  # (T, D); None: a file without ground truth (started automatically)
+    truth_joints: np.ndarray | None  # (T, J, 3)
     body: object
     shape_calibration: object = None  # a ShapeCalibration when the body was calibrated
     ground_prior: object = None  # the GroundPlanePrior the likelihood includes, if any (``add_ground_prior``)
@@ -286,10 +290,10 @@ def person_height_pixels(masks) -> float:
     return float(np.median(heights))
 
 
-def _start_pose(sequence: Sequence, body_model, pose, key) -> np.ndarray:
-    """The start pose on a new body: frame 0's joints solved on its skeleton when the file has
-    them (the given start is joint positions), else ``pose``."""
-    if sequence.joints3d is None:
+def _start_pose(sequence: Sequence, body_model, pose, key, start: str = "truth") -> np.ndarray:
+    """The start pose on a new body: with ``start="truth"``, frame 0's joints solved on its
+    skeleton when the file has them (the given start is joint positions), else ``pose``."""
+    if sequence.joints3d is None or start != "truth":
         return np.asarray(pose, np.float64)
     return np.asarray(inverse_kinematics(sequence.joints3d[:1], skeleton=body_model.skeleton, key=key, dtype=jnp.float64).pose[0])
 
@@ -334,7 +338,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  window="auto", calibrate: bool = False, resolution: tuple[int, int] | None = None,
                  pixel_samples: int | str | None = None, body: str = "auto", height: float | None = None, donors=(),
                  calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None,
-                 likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None) -> TestScene:
+                 likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None,
+                 start: str = "truth", start_model=None, root_height: float | None = None,
+                 start_search: StartSearch | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames, all when None).
 
@@ -354,10 +360,16 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     ``"auto"``: by the image size (``likelihood.default_pixel_samples``); None or 0: every pixel
     (pixel sampling applies to the silhouette likelihood only). ``likelihood`` names the
     registered likelihood (``likelihood.get_likelihood``; default the silhouettes' of 000 eq.
-    12) built with ``likelihood_options``. ``say`` (e.g. ``print``) is told what was chosen."""
+    12) built with ``likelihood_options``. ``say`` (e.g. ``print``) is told what was chosen.
+
+    ``start="truth"`` starts from frame 0's ground truth; ``"auto"`` finds the start from the
+    first frame's images (``automatic_start`` on ``start_model``'s latent space with the root
+    at ``root_height``, before any body calibration, which then starts from it), and a file
+    without ground truth is accepted (the scene's ``truth_poses`` and ``truth_joints`` are then
+    None)."""
     say = say or (lambda *a, **k: None)
     recipe = get_likelihood(likelihood)
-    check_test_sequence(sequence, name, recipe.observes)
+    check_test_sequence(sequence, name, recipe.observes, truth=start == "truth")
     if calibrate and "silhouettes" not in recipe.observes:
         raise ConfigurationError(f"{name}: --calibrate fits the capsule radii to silhouettes; the {recipe.name} likelihood "
                                  "reads none")
@@ -371,18 +383,26 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     width, image_height = (int(v) for v in sequence.image_size[0])
     if isinstance(pixel_samples, str) and pixel_samples != "auto":
         raise ValueError(f"pixel_samples must be a whole number, 'auto' or None, got {pixel_samples!r}")
+    if start not in START_CHOICES:
+        raise ValueError(f"start must be one of {START_CHOICES}, got {start!r}")
+    if start == "auto" and (start_model is None or root_height is None):
+        raise ValueError("start='auto' searches a manifold's latent space: give start_model and root_height")
     resolved = subject_body(sequence, name, key=key, choice=body, donors=donors, dtype=TRACKING_DTYPE)
-    if resolved.poses is None:
-        raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
+    if resolved.poses is None and start == "truth":
+        raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to start from and be scored; "
+                         "without it, start automatically (start='auto', 'jaxtrack track --start auto')")
     body_model = resolved.body
     observed = (None if sequence.silhouettes is None
                 else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames])
     keypoints = None if sequence.keypoints2d is None else check_keypoints(sequence.keypoints2d, rig.num_views,
                                                                             where=f"{name} keypoints2d")[:, :frames]
-    truth_poses = resolved.poses[:frames]
-    truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
-    check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
-                  f"{name}'s initial pose (frame 0)")
+    truth_poses = truth = None
+    if resolved.poses is not None:
+        truth_poses = resolved.poses[:frames]
+        truth = ground_truth_joints(sequence, truth_poses, body_model.skeleton)[:frames]
+    if start == "truth":
+        check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
+                      f"{name}'s initial pose (frame 0)")
     edges = foreground = None
     if {"edges", "foreground"} & set(recipe.observes):  # 001's maps, from the images' edges where the file has images
         images = None if sequence.images is None else sequence.images[:, :frames]
@@ -394,7 +414,14 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     per_frame = {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground}  # (C, T, ...) -> (T, C, ...)
     per_frame = {kind: np.moveaxis(per_frame[kind], 1, 0) for kind in recipe.observes}
     observations = per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
-    initial_pose = truth_poses[0]
+    if start == "auto":
+        initial_pose, found = automatic_start(
+            jax.random.fold_in(key, START_TAG), likelihood, jax.tree.map(jnp.asarray, observations), start_model, rig,
+            body_model.skeleton, root_height=root_height, search=start_search or StartSearch(),
+            silhouettes=None if observed is None else observed[:, 0], keypoints=None if keypoints is None else keypoints[:, 0])
+        say(f"{name}: automatic start: the root placed by the {found['placed_by']}, heading {np.degrees(found['heading']):.0f} deg")
+    else:
+        initial_pose = truth_poses[0]
     calibration = None
     tall = person_height_pixels(observed[:, 0]) if observed is not None else keypoint_height_pixels(keypoints[:, 0]) / 0.9
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
@@ -408,14 +435,14 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             body_model = eqx.tree_at(lambda b: b.skeleton, body_model,
                                      humaneva_body(limb_lengths_for_height(height), dtype=TRACKING_DTYPE).skeleton)
             likelihood = with_body(likelihood, body_model)
-            initial_pose = _start_pose(sequence, body_model, truth_poses[0], key)
+            initial_pose = _start_pose(sequence, body_model, initial_pose, key, start)
     if wanted:
         count = max(1, min(calibration_frames, frames))
         say(f"{name}: calibrating the body's limb lengths and radii from the first {count} frames' silhouettes"
             f"{'' if height is None else f' (height {height:g} m)'}")
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
         try:
-            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(truth_poses[:1], count, axis=0),
+            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(initial_pose[None], count, axis=0),
                                                                    jax.tree.map(lambda x: jnp.asarray(x[:count]), observations),
                                                                    height=height)
         except ConfigurationError as err:
@@ -426,7 +453,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if wanted:
         body_model = body_of(calibrated)
         likelihood = with_body(likelihood, body_model)
-        initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key)
+        initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key, start)
         say(f"{name}: calibrated limb lengths (mm): "
             + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
             + f"; silhouette cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
@@ -434,7 +461,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])
         body_model = likelihood.body
-    start_error = float(np.mean(np.linalg.norm(
+    start_error = float("nan") if truth is None else float(np.mean(np.linalg.norm(
         np.asarray(forward_kinematics(body_model.skeleton, jnp.asarray(initial_pose, TRACKING_DTYPE)), np.float64) - truth[0], axis=-1)))
     observations = jax.tree.map(jnp.asarray, observations)
     if pixel_samples is not None:
@@ -622,9 +649,12 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     validation_subject = subject_body(validation, "the validation sequence", key=key)
     if validation_subject.poses is None:
         raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
+    layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
+    root_height = float(np.mean(validation_subject.poses[:, layout.index("root_z")]))
     scene = prepare_test(sequence, name, key=key, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
-                         **spec.scene_options())
-    say(f"{name}: body {scene.body_source}; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth")
+                         start=spec.start, start_model=model, root_height=root_height, **spec.scene_options())
+    say(f"{name}: body {scene.body_source}"
+        + ("" if np.isnan(scene.start_error_mm) else f"; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth"))
     starts = header.get("sequence_starts")
     validation_poses = validation_subject.poses
     if spec.ground_prior:

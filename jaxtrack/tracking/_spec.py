@@ -18,6 +18,7 @@ from ..errors import ConfigurationError
 from ..likelihood import DEFAULT_LIKELIHOOD, get_likelihood
 from ..manifold import DEFAULT_OPTIMISER, OPTIMISERS, manifold_kinds
 from ._registry import GRADIENT_COST, Budget, TrackerRecipe, get_tracker
+from ._start import START_CHOICES
 from ._subject import BODY_CHOICES
 
 
@@ -79,6 +80,9 @@ class TrackingSpec:
         residual: the scale of the off-manifold pose residual of every tracker whose pose is
             decoded from a latent point (``jaxtrack.dynamics.PoseResidual``; 0: none), relative
             to the pose random walk's steps; None: each tracker's own (``TrackerRecipe.residual``).
+        start: where ``track_sequence`` starts (``tracking.START_CHOICES``): "truth" (frame 0's
+            ground truth) or "auto" (``tracking.automatic_start``: found from the first frame's
+            images on the model's latent space; no ground truth needed).
 
     Raises:
         ConfigurationError: on any setting out of its range, an unknown manifold kind or
@@ -104,6 +108,7 @@ class TrackingSpec:
     ground_prior: bool = True
     velocity: bool | None = None
     residual: float | None = None
+    start: str = "truth"
 
     def __post_init__(self):
         if not _positive_int(self.fit_steps) or (self.latent_dim is not None and not _positive_int(self.latent_dim)):
@@ -120,6 +125,8 @@ class TrackingSpec:
                                      f"(every pixel) or 'auto', got {self.pixel_samples!r}")
         if self.body not in BODY_CHOICES:
             raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
+        if self.start not in START_CHOICES:
+            raise ConfigurationError(f"start must be one of {START_CHOICES}, got {self.start!r}")
         if self.height is not None:
             try:
                 check_height(self.height)

@@ -1,0 +1,119 @@
+"""Frames per second of the whole video path, split into its stages: decoding the cameras'
+H.264 videos, background subtraction, the likelihood and the filter (``jaxtrack track --video``'s
+steps, default 3 views of 320x240 at budget 500 with MRPF). Every stage is timed warm (compile
+apart: the first pass is reported as ``first_seconds``); the filter's steady state is the second
+half of the frames, tracked as a second chunk of the same compiled scan. The likelihood's share
+is its jitted evaluation of ``budget`` poses on one frame, times the frames.
+
+    taskset -c 0,1 python benchmarks/bench_video_path.py --json video_path.json
+    python benchmarks/bench_video_path.py --folder DIR   # a folder from `jaxtrack scene --rgb --video`
+
+Without ``--folder`` a synthetic walk (subject S1) is filmed first into a temporary folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+
+from bench_output import add_output_arguments, pin_threads, write_json
+
+
+def _median_seconds(fn, repeats):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return sorted(times)[len(times) // 2]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--folder", help="a filmed scene (default: film a synthetic walk)")
+    parser.add_argument("--views", type=int, default=3)
+    parser.add_argument("--width", type=int, default=320)
+    parser.add_argument("--height", type=int, default=240)
+    parser.add_argument("--frames", type=int, default=96)
+    parser.add_argument("--budget", type=int, default=500)
+    parser.add_argument("--method", default="mrpf")
+    add_output_arguments(parser)
+    args = parser.parse_args()
+    pin_threads(args.threads)
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxtrack.camera import default_rig
+    from jaxtrack.data import NO_NOISE, generate_motion, motion_sequence, scene_from_sequence, write_rgb_scene
+    from jaxtrack.io import MultiViewVideo, read_calibration
+    from jaxtrack.tracking import TrackingSpec, fit_manifold, prepare_test, sequence_from_video, track_sequence
+
+    motion = generate_motion("walk", "S1", num_frames=max(args.frames, 120), fps=60.0, key=jax.random.key(0), dtype=jnp.float64)
+    walk = motion_sequence(motion)
+    folder = args.folder
+    if folder is None:
+        folder = tempfile.mkdtemp(prefix="jaxtrack_video_")
+        rig = default_rig(args.width, args.height, num_views=args.views)
+        scene = scene_from_sequence(jax.random.key(1), walk, rig, NO_NOISE, frames=args.frames)
+        write_rgb_scene(folder, jax.random.key(1), scene, background_frames=30)
+    rig = read_calibration([os.path.join(folder, "calibration.json")], dtype=np.float64)
+    videos = [os.path.join(folder, f"{n}.mp4") for n in rig.names]
+    backgrounds = [os.path.join(folder, "background", f"{n}.mp4") for n in rig.names]
+    rows = []
+
+    def report(stage, seconds, frames, first=None):
+        row = {"stage": stage, "seconds": seconds, "frames": frames, "fps": frames / seconds,
+               "views": rig.num_views, "width": int(rig.image_size[0][0]), "height": int(rig.image_size[0][1]), "budget": args.budget}
+        if first is not None:
+            row["first_seconds"] = first
+        rows.append(row)
+        print(f"{stage:>22}: {1000 * seconds / frames:7.1f} ms/frame = {frames / seconds:6.1f} frames/s"
+              + ("" if first is None else f"   (first pass, compile included: {first:.1f} s)"))
+        write_json(rows, args.json)
+
+    def decode():
+        with MultiViewVideo(videos) as video:
+            return sum(block.shape[1] for _, block in video.chunks(32))
+
+    start = time.perf_counter()
+    frames = decode()
+    first = time.perf_counter() - start
+    report("decode", _median_seconds(decode, 3), frames, first)
+    start = time.perf_counter()
+    sequence_from_video(videos, rig, background=backgrounds)
+    first = time.perf_counter() - start
+    read = sequence_from_video(videos, rig, background=backgrounds)
+    report("background subtraction", read.seconds["background"], frames, first)
+    model, _, starts = fit_manifold([np.asarray(motion.pose)], 2, 100)
+    height = float(np.mean(np.asarray(motion.pose)[:, 2]))
+    spec = TrackingSpec(budget=args.budget, body="default", start="auto")
+    scene = prepare_test(read.sequence, "bench", key=jax.random.key(0), start="auto", start_model=model, root_height=height,
+                         **spec.scene_options())
+    poses = jnp.repeat(scene.initial_pose[None], args.budget, axis=0)
+    poses = poses + 0.02 * jax.random.normal(jax.random.key(2), poses.shape, poses.dtype)
+    score = jax.jit(scene.likelihood)
+    frame = jax.tree.map(lambda x: x[1], scene.observations)
+    jax.block_until_ready(score(poses, frame))
+    likelihood = _median_seconds(lambda: jax.block_until_ready(score(poses, frame)), 7)
+    report("likelihood", likelihood * frames, frames)
+    stamps = []
+    header = {"sequence_starts": list(starts)}
+    half = frames // 2
+    start = time.perf_counter()
+    track_sequence(read.sequence, model, header, args.method, walk, spec, chunk_frames=half,
+                   on_chunk=lambda p, j: stamps.append(time.perf_counter()), say=lambda *a, **k: None)
+    steady = stamps[1] - stamps[0]
+    report(f"filter ({args.method}, likelihood in)", steady, frames - half, stamps[0] - start)
+    per_frame = (rows[0]["seconds"] / rows[0]["frames"] + rows[1]["seconds"] / rows[1]["frames"] + steady / (frames - half))
+    rows.append({"stage": "whole path", "fps": 1.0 / per_frame, "seconds_per_frame": per_frame})
+    print(f"{'whole path':>22}: {1000 * per_frame:7.1f} ms/frame = {1.0 / per_frame:6.1f} frames/s (target 25)")
+    write_json(rows, args.json)
+
+
+if __name__ == "__main__":
+    main()

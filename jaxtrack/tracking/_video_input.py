@@ -1,0 +1,146 @@
+"""From a user's files to a test sequence: calibrated videos (and background videos, and a
+detector's keypoints) -> silhouettes by background subtraction -> a ``Sequence`` to track.
+
+The videos are decoded in chunks (``io.MultiViewVideo``); the background model comes from the
+background videos when given, else from frames spread over the videos themselves
+(``io.sample_frames_evenly``, the person moving). Each chunk's silhouettes are kept as bits of
+one byte per pixel; the pictures are kept only when asked (001's edge likelihood reads them).
+
+Nothing is lost to bad frames: a frame that cannot be decoded, or a camera that sees nobody
+(an empty silhouette), ends the sequence before that frame, and the reason is returned with
+the frames before it, which can still be tracked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from ..camera import CameraRig
+from ..image import fit_background, subtract_background
+from ..io import MultiViewVideo, Sequence, VideoFileError, sample_frames_evenly
+
+BACKGROUND_SAMPLES = 40  # frames spread over the video for its own background model
+
+
+@dataclasses.dataclass
+class VideoInput:
+    """What ``sequence_from_video`` read.
+
+    Attributes:
+        sequence: the cameras, fps, silhouettes (C, T, H, W) and keypoints (if given) of the
+            frames read, T of them.
+        total_frames: the videos' length.
+        stopped: why reading stopped before the end (None: it did not): the frame and camera.
+        seconds: time spent decoding and in background subtraction.
+    """
+
+    sequence: Sequence
+    total_frames: int
+    stopped: str | None
+    seconds: dict
+
+
+def _check_sizes(rig: CameraRig, video: MultiViewVideo, what: str) -> None:
+    for name, size, (width, height), path in zip(rig.names, video.sizes, rig.image_size, video.paths):
+        if tuple(int(v) for v in size) != (int(width), int(height)):
+            raise VideoFileError(f"{path}: {what} of camera {name!r} is {size[0]}x{size[1]}, but its calibration is for "
+                                 f"{int(width)}x{int(height)} images")
+
+
+def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
+                        frames: int | None = None, chunk: int = 32, keep_images: bool = False, say=None) -> VideoInput:
+    """Read calibrated videos into a test sequence (module docstring).
+
+    Args:
+        videos: one video file or image folder per camera, in the rig's order.
+        rig: the cameras (``io.read_calibration``); each video's frame size must be its
+            camera's image size.
+        fps: the frame rate when the sources do not say (image folders); else the videos'.
+        background: one video or folder of the empty scene per camera, or None.
+        keypoints: (C, T', 15, 3) detections (``io.read_keypoint_sources``), T' >= the frames read.
+        frames: read at most this many frames.
+        keep_images: keep the pictures as the sequence's ``images``.
+
+    Raises:
+        VideoFileError: videos of different lengths or sizes, or sizes that are not the rig's.
+        ValueError: a count of videos that is not the rig's, or keypoints of other cameras.
+    """
+    say = say or (lambda *a, **k: None)
+    if len({tuple(int(v) for v in size) for size in rig.image_size}) != 1:
+        raise ValueError("the cameras' images must share one size (the silhouette likelihood scores them together); "
+                         f"the calibration has {[tuple(int(v) for v in s) for s in rig.image_size]}")
+    if len(videos) != rig.num_views:
+        raise ValueError(f"the calibration has {rig.num_views} cameras ({', '.join(rig.names)}): give one video per camera "
+                         f"in that order (got {len(videos)})")
+    seconds = {"decode": 0.0, "background": 0.0}
+    if background is not None:
+        if len(background) != rig.num_views:
+            raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
+        with MultiViewVideo(background, names=rig.names) as empty:
+            _check_sizes(rig, empty, "the background video")
+            start = time.perf_counter()
+            pictures = np.concatenate([c for _, c in empty.chunks(chunk)], axis=1).swapaxes(0, 1)  # (t, C, H, W, 3)
+            seconds["decode"] += time.perf_counter() - start
+        source = f"{pictures.shape[0]} background frames per camera"
+    else:
+        start = time.perf_counter()
+        pictures = sample_frames_evenly(videos, BACKGROUND_SAMPLES)  # (t, C, H, W, 3)
+        seconds["decode"] += time.perf_counter() - start
+        source = f"the median of {pictures.shape[0]} frames spread over the videos"
+    start = time.perf_counter()
+    model = fit_background(pictures)
+    seconds["background"] += time.perf_counter() - start
+    say(f"background model: {source}")
+    masks, images, stopped = [], [], None
+    with MultiViewVideo(videos, names=rig.names) as video:
+        _check_sizes(rig, video, "the video")
+        total = video.num_frames
+        wanted = total if frames is None else min(int(frames), total)
+        if keypoints is not None:
+            keypoints = np.asarray(keypoints)
+            if keypoints.shape[0] != rig.num_views or keypoints.shape[1] < wanted:
+                raise ValueError(f"keypoints of {keypoints.shape[0]} cameras x {keypoints.shape[1]} frames, but the videos have "
+                                 f"{rig.num_views} cameras x {wanted} frames")
+        fps = float(fps if fps is not None else (video.fps or 0.0))
+        if not fps > 0:
+            raise ValueError("the sources do not say their frame rate (image folders): give it (--fps)")
+        chunks = video.chunks(chunk, frames=wanted)
+        while True:
+            start = time.perf_counter()
+            try:
+                first, block = next(chunks)
+            except StopIteration:
+                break
+            except VideoFileError as err:
+                stopped = str(err)
+                break
+            finally:
+                seconds["decode"] += time.perf_counter() - start
+            start = time.perf_counter()
+            mask = np.asarray(subtract_background(model, np.moveaxis(block, 1, 0)).mask).swapaxes(0, 1)  # (C, t, H, W)
+            seconds["background"] += time.perf_counter() - start
+            area = mask.sum(axis=(2, 3))
+            if np.any(area == 0):
+                c, t = np.argwhere(area == 0)[np.argmin(np.argwhere(area == 0)[:, 1])]
+                stopped = f"camera {rig.names[c]!r} sees nobody at frame {first + t} (an empty silhouette)"
+                masks.append(mask[:, :t])
+                if keep_images:
+                    images.append(block[:, :t])
+                break
+            masks.append(mask)
+            if keep_images:
+                images.append(block)
+    count = sum(m.shape[1] for m in masks)
+    if count == 0:
+        raise VideoFileError(f"nothing to track: {stopped}")
+    silhouettes = np.concatenate(masks, axis=1).astype(np.uint8)
+    sequence = Sequence.create(
+        fps=fps, camera_K=np.asarray(rig.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
+        camera_t=np.asarray(rig.t, np.float64), camera_dist=np.asarray(rig.dist, np.float64),
+        image_size=np.asarray(rig.image_size, np.int64), camera_names=np.asarray(rig.names), silhouettes=silhouettes,
+        images=np.concatenate(images, axis=1) if keep_images else None,
+        keypoints2d=None if keypoints is None else np.asarray(keypoints[:, :count], np.float32))
+    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds)
