@@ -96,7 +96,7 @@ def main():
                          **spec.scene_options())
     poses = jnp.repeat(scene.initial_pose[None], args.budget, axis=0)
     poses = poses + 0.02 * jax.random.normal(jax.random.key(2), poses.shape, poses.dtype)
-    score = jax.jit(scene.likelihood)
+    score = jax.jit(lambda p, f: scene.likelihood(p, f))
     frame = jax.tree.map(lambda x: x[1], scene.observations)
     jax.block_until_ready(score(poses, frame))
     likelihood = _median_seconds(lambda: jax.block_until_ready(score(poses, frame)), 7)

@@ -2,12 +2,15 @@
 # The video path end to end (docs/video.md): CMU subject 35's walk filmed in colour by
 # `jaxtrack scene --rgb --video` (the solid body, not the tracker's capsules, over a real
 # photograph, with cast shadows, a lighting change and sensor noise), then tracked by MRPF
-# (a) from the videos, the silhouettes by background subtraction, started automatically, the
-#     body calibrated, no ground truth read;
+# (a) from the videos, the silhouettes by background subtraction, started automatically, no
+#     ground truth read;
 # (b) the same with the 2-D keypoints (5 px noise, 10 % dropped) summed in;
 # (c) the same with 001's edge and foreground terms summed in (160x120 only: 4 frames/s);
-# (r) the reference: the renderer's true silhouettes, started from the truth, the true skeleton.
-# Env: CMU (converted takes, benchmarks/cmu_experiment.sh), OUT, FRAMES, SIZES, VIEWS, SEEDS.
+# (r) the reference: the renderer's true silhouettes, started from the truth.
+# Every run tracks with BODY (default: the default body; "auto" calibrates it from the first
+# frames where the person is tall enough, and falls back to the default where that fails,
+# which makes runs differ in their body as well as their cue).
+# Env: CMU (converted takes, benchmarks/cmu_experiment.sh), OUT, FRAMES, SIZES, VIEWS, SEEDS, BODY.
 set -euo pipefail
 CMU=${CMU:-/tmp/cmu}
 OUT=${OUT:-/tmp/video_study}
@@ -15,6 +18,7 @@ FRAMES=${FRAMES:-100}
 SIZES=${SIZES:-"160x120 320x240"}
 VIEWS=${VIEWS:-"4 3"}
 SEEDS=${SEEDS:-"0"}
+BODY=${BODY:-default}
 mkdir -p "$OUT"
 [ -f "$OUT/walk.eqx" ] || jaxtrack fit "$CMU/35_01.npz" "$CMU/35_02.npz" --model bc-gplvm --latent-dim 2 --out "$OUT/walk.eqx"
 for size in $SIZES; do
@@ -24,9 +28,9 @@ for size in $SIZES; do
     [ -f "$film/truth.npz" ] || jaxtrack scene "$CMU/35_29.npz" --rgb --video "$film" --frames "$FRAMES" --width "$w" --height "$h" --views "$views"
     cams=$(python -c "import json;print(' '.join('$film/'+c['name']+'.mp4' for c in json.load(open('$film/calibration.json'))['cameras']))")
     bgs=$(python -c "import json;print(' '.join('$film/background/'+c['name']+'.mp4' for c in json.load(open('$film/calibration.json'))['cameras']))")
-    common="--model $OUT/walk.eqx --validation $CMU/35_03.npz --method mrpf --chunk-frames 0"
+    common="--model $OUT/walk.eqx --validation $CMU/35_03.npz --method mrpf --chunk-frames 0 --body $BODY"
     for seed in $SEEDS; do
-      run="$OUT/${size}_${views}_s$seed"
+      run="$OUT/${size}_${views}_s${seed}_$BODY"
       [ -f "${run}_reference.npz" ] || jaxtrack track "$film/truth.npz" $common --seed "$seed" --out "${run}_reference.npz"
       [ -f "${run}_video.npz" ] || jaxtrack track --video $cams --background $bgs --calibration "$film/calibration.json" $common \
           --seed "$seed" --out "${run}_video.npz" --overlay "${run}_video.mp4"
@@ -44,12 +48,12 @@ import glob, os, sys
 import numpy as np
 from jaxtrack.io import load_sequence
 out = sys.argv[1]
-print("| images | views | seed | run | mean error (mm) | frame 0 (mm) |")
-print("|---|---|---|---|---|---|")
-for path in sorted(glob.glob(os.path.join(out, "*_s*_*.npz"))):
-    size, views, seed, run = os.path.basename(path)[:-4].split("_", 3)
+print("| images | views | seed | body | run | mean error (mm) | frame 0 (mm) |")
+print("|---|---|---|---|---|---|---|")
+for path in sorted(glob.glob(os.path.join(out, "*x*_*_s*_*_*.npz"))):
+    size, views, seed, body, run = os.path.basename(path)[:-4].split("_", 4)
     truth = load_sequence(os.path.join(out, f"film_{size}_{views}", "truth.npz")).joints3d
     est = load_sequence(path).joints3d
     err = 1000 * np.linalg.norm(est - truth[: len(est)], axis=-1).mean(axis=-1)
-    print(f"| {size} | {views} | {seed[1:]} | {run} | {err.mean():.1f} | {err[0]:.1f} |")
+    print(f"| {size} | {views} | {seed[1:]} | {body} | {run} | {err.mean():.1f} | {err[0]:.1f} |")
 PY

@@ -293,7 +293,7 @@ def _video_test(args):
         keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names)
     observes = get_likelihood(args.likelihood).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
-                               keep_images=bool({"edges", "foreground"} & set(observes)), say=print)
+                               keep_images=bool({"edges", "foreground", "images"} & set(observes)), say=print)
     print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['background']:.1f} s "
           f"(decoding {read.seconds['decode']:.1f} s)")
     if read.stopped:
@@ -302,6 +302,8 @@ def _video_test(args):
 
 
 def _track(args) -> int:
+    import dataclasses
+
     import jax
 
     jax.config.update("jax_enable_x64", True)  # the model is float64; the tracker casts to float32
@@ -312,6 +314,8 @@ def _track(args) -> int:
     from .manifold import load_model
     from .tracking import TrackingSpec, track_sequence
 
+    spec = TrackingSpec(**_spec_fields(args))  # checked before any file is read
+    spec.check_method(args.method)
     inputs = [args.test, args.validation, args.model, *(args.video or []), *(args.background or []), *(args.calibration or []),
               *(args.keypoints or [])]
     args.out = check_output(args.out, inputs, suffix=".npz")
@@ -333,9 +337,7 @@ def _track(args) -> int:
     else:
         raise ValueError("give a test sequence file, or the videos (--video ... --calibration ...)")
     has_truth = sequence.joints3d is not None or sequence.pose is not None
-    start = args.start or ("truth" if has_truth else "auto")
-    spec = TrackingSpec(**_spec_fields(args), start=start)
-    spec.check_method(args.method)
+    spec = dataclasses.replace(spec, start=args.start or ("truth" if has_truth else "auto"))
     kept = sequence.replace(silhouettes=None, images=None) if args.video else sequence
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk

@@ -28,6 +28,7 @@ def filmed():
     return motion, rig, solid, pictures, masks
 
 
+@pytest.mark.xdist_group("colour_film")  # one worker compiles the renderer (--dist loadgroup)
 def test_rgb_masks_are_the_solid_body_silhouettes_and_the_empty_scene_is_the_photo(filmed):
     motion, rig, solid, pictures, masks = filmed
     assert pictures.shape == (2, 6, 48, 64, 3) and pictures.dtype == np.uint8 and masks.shape == (2, 6, 48, 64)
@@ -44,6 +45,7 @@ def test_rgb_masks_are_the_solid_body_silhouettes_and_the_empty_scene_is_the_pho
     assert np.median(inside) > 60
 
 
+@pytest.mark.xdist_group("colour_film")  # one worker compiles the renderer (--dist loadgroup)
 def test_rgb_shadows_and_lighting_change_act_as_stated(filmed):
     motion, rig, solid, *_ = filmed
     grey = np.full((2, 48, 64, 3), 200, np.uint8)
@@ -62,6 +64,7 @@ def test_rgb_shadows_and_lighting_change_act_as_stated(filmed):
     np.testing.assert_allclose(lit[:, 0, 10, 10, 0], expected, atol=1)
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_background_subtraction_finds_the_rendered_person():
     motion = generate_motion("walk", "S1", num_frames=4, fps=30.0, key=jax.random.key(3))
     rig = default_rig(160, 120, num_views=2)
@@ -79,7 +82,7 @@ def test_background_subtraction_finds_the_rendered_person():
 
 
 def test_triangulation_and_the_root_guess_recover_the_truth():
-    motion, rig, scene = small_scene(num_frames=2, noisy=False)
+    motion, rig, scene = small_scene()
     joints = np.asarray(scene.joints3d[0])
     uv, _, _ = project_points(rig, jnp.asarray(joints))
     pixels = np.asarray(uv).swapaxes(0, 1)  # (C, J, 2)
@@ -96,11 +99,13 @@ def test_triangulation_and_the_root_guess_recover_the_truth():
     np.testing.assert_allclose(xy, pose[:2], atol=1e-6)
     assert abs(np.angle(np.exp(1j * (heading - pose[3])))) < 0.05
     xy, heading, how = root_guess(rig, motion.body.skeleton, silhouettes=scene.silhouettes[:, 0])
-    assert how == "silhouette centroids" and heading is None and np.linalg.norm(xy - pose[:2]) < 0.1
+    # noisy 40x30 views (clutter blobs, foot shadows), where a pixel spans 0.15 m at the body
+    assert how == "silhouette centroids" and heading is None and np.linalg.norm(xy - pose[:2]) < 0.2
     with pytest.raises(ValueError, match="fewer than two cameras"):
         root_guess(rig, motion.body.skeleton, silhouettes=np.zeros_like(scene.silhouettes[:, 0]))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_the_automatic_start_lands_near_the_truth_without_reading_it():
     from jaxtrack.manifold import make_gpdm
 
@@ -122,6 +127,7 @@ def test_the_automatic_start_lands_near_the_truth_without_reading_it():
         prepare_test(blind, "blind", key=jax.random.key(0))
 
 
+@pytest.mark.xdist_group("colour_film")  # one worker compiles the renderer (--dist loadgroup)
 def test_videos_read_back_into_a_sequence_and_bad_input_is_named(filmed, tmp_path):
     motion, rig, solid, pictures, masks = filmed
     empty, _ = render_rgb(jax.random.key(1), solid, rig, motion.pose[:4], fps=30.0, with_body=False, chunk=2)
@@ -191,14 +197,19 @@ def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys):
     assert estimate.joints3d.shape == (8, 15, 3) and estimate.silhouettes is None
     error = 1000 * np.mean(np.linalg.norm(estimate.joints3d - truth.joints3d, axis=-1))
     assert error < 150, error  # tracked, roughly: 64 particles, a 5-step manifold
-    import imageio.v3 as iio
+    from jaxtrack.io import MultiViewVideo
 
-    assert iio.imread(tmp_path / "est.mp4", index=0).shape == (72, 3 * 96, 3)
+    def frames_of(path):
+        with MultiViewVideo([path]) as video:
+            return np.concatenate([block for _, block in video.chunks(8)], axis=1)  # (1, T, H, W, 3)
+
+    overlay = frames_of(tmp_path / "est.mp4")
+    assert overlay.shape == (1, 8, 72, 3 * 96, 3)
     # Camera C2 sees nobody from frame 5: frames 0-4 tracked and written, exit status 4.
     with VideoWriter([tmp_path / "C2_cut.mp4"], 30.0) as writer:
-        frames = np.stack(list(iio.imiter(videos[1])))[:8]
-        frames[5:] = np.stack(list(iio.imiter(film / "background" / "C2.mp4")))[:3]
-        writer.write(frames[None])
+        frames = frames_of(videos[1])
+        frames[:, 5:] = frames_of(film / "background" / "C2.mp4")[:, :3]
+        writer.write(frames)
     cut = [videos[0], str(tmp_path / "C2_cut.mp4"), videos[2]]
     args[2:5] = cut
     assert main([*args, "--out", str(tmp_path / "cut")]) == 4

@@ -21,7 +21,8 @@ between the two thresholds, 0 on shadows.
 
 Lighting that changes over the take (clouds, a camera's auto-exposure) multiplies the whole
 picture: with ``lighting`` on, each frame is first divided by its gain against the background,
-the median over its pixels of their intensity ratio (the person covers far fewer than half).
+the median of its pixels' intensity ratio on a grid of every 4th pixel (the person covers far
+fewer than half).
 """
 
 from __future__ import annotations
@@ -109,9 +110,10 @@ def subtract_background(model: BackgroundModel, frames, *, low: float = 4.0, hig
 
 
 def lighting_gain(model: BackgroundModel, frames) -> Float[Array, ...]:
-    """(...,) each (..., H, W, 3) frame's brightness relative to the background: the median over
-    its pixels of their intensity ratio."""
-    ratio = jnp.sum(frames, axis=-1) / jnp.maximum(jnp.sum(model.colour, axis=-1), 1e-3)
+    """(...,) each (..., H, W, 3) frame's brightness relative to the background: the median of
+    its pixels' intensity ratio, over every 4th pixel of every 4th row (a full sort of every
+    pixel cost 72 ms a frame for 3 views of 320x240 on 2 cores, the subsample 1/16 of it)."""
+    ratio = jnp.sum(frames[..., ::4, ::4, :], axis=-1) / jnp.maximum(jnp.sum(model.colour[..., ::4, ::4, :], axis=-1), 1e-3)
     return jnp.median(ratio.reshape(ratio.shape[:-2] + (-1,)), axis=-1)
 
 

@@ -26,6 +26,11 @@ from ._edges import maps_from_silhouettes as maps_from_silhouettes
 from ._ground import GroundPlanePrior as GroundPlanePrior
 from ._ground import ground_clearance as ground_clearance
 from ._ground import make_ground_prior as make_ground_prior
+from ._histogram import ColourHistogramLikelihood as ColourHistogramLikelihood
+from ._histogram import bhattacharyya_distance as bhattacharyya_distance
+from ._histogram import make_histogram_likelihood as make_histogram_likelihood
+from ._histogram import set_colour_references as set_colour_references
+from ._histogram import soft_histogram as soft_histogram
 from ._keypoints import KeypointLikelihood as KeypointLikelihood
 from ._keypoints import joint_sigmas as joint_sigmas
 from ._keypoints import make_keypoint_likelihood as make_keypoint_likelihood

@@ -21,6 +21,7 @@ from typing import Any
 from .._registries import Registry, check_name
 from ._base import AbstractLikelihood, ObservationPart
 from ._edges import make_edge_foreground_likelihood
+from ._histogram import make_histogram_likelihood
 from ._keypoints import make_keypoint_likelihood
 from ._silhouette import make_silhouette_likelihood
 
@@ -40,6 +41,7 @@ class SceneInputs:
             confidence in [0, 1]), the tracked frames, or None where the scene has none.
         edges, foreground: (C, T, H, W) edge-proximity and foreground maps in [0, 1] (001's
             observations), made by ``prepare_test`` for a recipe that observes them, else None.
+        images: (C, T, H, W, 3) colour frames in [0, 1], for a recipe that observes them.
     """
 
     body: Any
@@ -50,6 +52,7 @@ class SceneInputs:
     keypoints: Any = None
     edges: Any = None
     foreground: Any = None
+    images: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,7 +102,7 @@ class LikelihoodRecipe:
         return likelihood
 
 
-OBSERVATION_KINDS = ("silhouettes", "keypoints", "edges", "foreground")
+OBSERVATION_KINDS = ("silhouettes", "keypoints", "edges", "foreground", "images")
 
 _LIKELIHOODS: Registry[LikelihoodRecipe] = Registry("likelihood", LikelihoodRecipe, "register_likelihood")
 
@@ -181,3 +184,15 @@ register_likelihood(LikelihoodRecipe(
     "silhouette+edge+foreground", "the silhouettes' likelihood times 001's edge and foreground terms",
     _silhouette_edge_foreground, {"edge_width": 1.0, "points": 6, "edges": True, "foreground": True},
     observes=("silhouettes", "edges", "foreground")))
+
+
+def _edge_foreground_histogram(inputs: SceneInputs, *, points: int, edge_width: float, bins: int) -> AbstractLikelihood:
+    histogram = make_histogram_likelihood(inputs.body, inputs.rig, scale=inputs.scale, bins=bins, points=points,
+                                          dtype=inputs.body.radii.dtype)
+    return _edge_foreground(inputs, points=points, edge_width=edge_width, edges=True, foreground=True) + histogram
+
+
+register_likelihood(LikelihoodRecipe(
+    "edge+foreground+histogram", "paper 001's combined weight (001 eq. 19): its edge, foreground and colour-histogram terms "
+    "(001 eqs. 12-18), the histograms' references taken at the start pose on the first frame; needs the file's images",
+    _edge_foreground_histogram, {"points": 6, "edge_width": 1.0, "bins": 4}, observes=("edges", "foreground", "images")))

@@ -55,6 +55,7 @@ from ..likelihood import (
     maps_from_images,
     maps_from_silhouettes,
     sample_frames,
+    set_colour_references,
     with_body,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
@@ -93,8 +94,9 @@ def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...]
     keypoints, and edge and foreground maps, which are made from the silhouettes and images),
     cameras and (with ``truth``) ground truth; raise ``ValueError`` if not."""
     present = {"silhouettes": sequence.silhouettes is not None, "keypoints": sequence.keypoints2d is not None,
-               "cameras": sequence.has_cameras}
-    keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size"}
+               "cameras": sequence.has_cameras, "images": sequence.images is not None}
+    keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size",
+            "images": "images"}
     needed = ["silhouettes" if kind in ("edges", "foreground") else kind for kind in observes]
     needed = list(dict.fromkeys([*needed, "cameras"]))
     missing = [what for what in needed if not present[what]]
@@ -408,10 +410,15 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         images = None if sequence.images is None else sequence.images[:, :frames]
         edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(images, observed))
         edges, foreground = np.asarray(edges), np.asarray(foreground)
+    images = None
+    if "images" in recipe.observes:
+        images = np.asarray(sequence.images[:, :frames], np.float32) / 255.0
     likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window,
-                                         keypoints=keypoints, edges=edges, foreground=foreground), **dict(likelihood_options or {}))
+                                         keypoints=keypoints, edges=edges, foreground=foreground, images=images),
+                             **dict(likelihood_options or {}))
     pixel_samples = _pixel_samples(pixel_samples, likelihood, recipe.name, width, image_height, name, say)
-    per_frame = {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground}  # (C, T, ...) -> (T, C, ...)
+    per_frame = {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground,
+                 "images": images}  # (C, T, ...) -> (T, C, ...)
     per_frame = {kind: np.moveaxis(per_frame[kind], 1, 0) for kind in recipe.observes}
     observations = per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
     if start == "auto":
@@ -422,6 +429,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         say(f"{name}: automatic start: the root placed by the {found['placed_by']}, heading {np.degrees(found['heading']):.0f} deg")
     else:
         initial_pose = truth_poses[0]
+    if "images" in recipe.observes:  # the colour histograms' references, at the start (001 eqs. 17-18)
+        likelihood = set_colour_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     calibration = None
     tall = person_height_pixels(observed[:, 0]) if observed is not None else keypoint_height_pixels(keypoints[:, 0]) / 0.9
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
@@ -457,6 +466,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         say(f"{name}: calibrated limb lengths (mm): "
             + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
             + f"; silhouette cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
+    if "images" in recipe.observes and wanted:  # again, on the calibrated body
+        likelihood = set_colour_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     report = None
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])

@@ -3,8 +3,8 @@
 1. *Where*: the root's floor position by triangulation. With 2-D keypoints, each joint seen with
    confidence in two or more views is triangulated (the least-squares point nearest the
    views' rays, confidence-weighted) and the pelvis gives the position, the hips the heading.
-   With silhouettes only, the views' mask centroids are triangulated (the body's centre of
-   area, a few centimetres above the pelvis) and the heading is left to the search.
+   With silhouettes only, the views' mask centres (the median pixel: clutter and shadows move a
+   mean) are triangulated, near the pelvis, and the heading is left to the search.
 2. *What pose*: an annealed particle search (000 sec. 4's annealing, its rate chosen per layer
    so that ``survival`` of the particles survive, ``filters.choose_beta``) over the manifold's
    latent space (particles start at the training latent points), the root's heading (all
@@ -106,12 +106,15 @@ def triangulate(rig: CameraRig, pixels, weights) -> tuple[np.ndarray, np.ndarray
 
 
 def mask_centroids(masks) -> tuple[np.ndarray, np.ndarray]:
-    """(C, 2) centroids (u, v) of (C, H, W) masks and (C,) their areas in pixels."""
+    """(C, 2) robust centres (u, v) of (C, H, W) masks, the median of their pixels' columns and
+    rows (a blob of clutter or a shadow moves a mean, not a median), and (C,) their areas."""
     masks = np.asarray(masks) > 0
-    v, u = np.mgrid[: masks.shape[1], : masks.shape[2]]
-    area = masks.sum(axis=(1, 2)).astype(np.float64)
-    safe = np.maximum(area, 1.0)
-    return np.stack([(masks * u).sum(axis=(1, 2)) / safe, (masks * v).sum(axis=(1, 2)) / safe], axis=-1), area
+    centres = np.zeros((masks.shape[0], 2))
+    for c, mask in enumerate(masks):
+        rows, cols = np.nonzero(mask)
+        if rows.size:
+            centres[c] = np.median(cols), np.median(rows)
+    return centres, masks.sum(axis=(1, 2)).astype(np.float64)
 
 
 def _heading_of_left(left_xy) -> float:
