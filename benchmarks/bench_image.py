@@ -12,17 +12,7 @@ import argparse
 import json
 import time
 
-from bench_output import add_output_arguments, pin_threads, write_json
-
-
-def _median_seconds(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    times.sort()
-    return times[len(times) // 2]
+from bench_output import add_output_arguments, median_seconds, pin_threads, write_json
 
 
 def main():
@@ -61,11 +51,11 @@ def main():
         start = time.perf_counter()
         jax.block_until_ready(compiled(data))
         first = time.perf_counter() - start
-        steady = _median_seconds(lambda f=compiled, x=data: jax.block_until_ready(f(x)), args.repeats)
+        steady = median_seconds(lambda f=compiled, x=data: jax.block_until_ready(f(x)), args.repeats)
         row = {"operation": name, "views": args.views, "size": f"{args.width}x{args.height}", "compile_s": round(first - steady, 3),
                "ms_per_frame": round(1000 * steady, 2)}
         if reference is not None:
-            scipy_s = _median_seconds(reference, args.repeats)
+            scipy_s = median_seconds(reference, args.repeats)
             row.update(scipy_ms=round(1000 * scipy_s, 2), ratio=round(scipy_s / steady, 2))
         rows.append(row)
         print(json.dumps(row), flush=True)

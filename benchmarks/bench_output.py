@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 
 def write_json(rows, path: str | None) -> None:
@@ -28,3 +29,13 @@ def add_output_arguments(parser, plot: str | None = None) -> None:
     parser.add_argument("--json", metavar="PATH", help="also write the rows to this JSON file")
     if plot is not None:
         parser.add_argument("--plot", metavar="PNG", help=plot)
+
+
+def median_seconds(fn, repeats: int) -> float:
+    """The median wall time of ``repeats`` calls of ``fn`` (which must block until done)."""
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return sorted(times)[len(times) // 2]

@@ -18,16 +18,7 @@ import os
 import tempfile
 import time
 
-from bench_output import add_output_arguments, pin_threads, write_json
-
-
-def _median_seconds(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return sorted(times)[len(times) // 2]
+from bench_output import add_output_arguments, median_seconds, pin_threads, write_json
 
 
 def main():
@@ -83,7 +74,7 @@ def main():
     start = time.perf_counter()
     frames = decode()
     first = time.perf_counter() - start
-    report("decode", _median_seconds(decode, 3), frames, first)
+    report("decode", median_seconds(decode, 3), frames, first)
     start = time.perf_counter()
     sequence_from_video(videos, rig, background=backgrounds)
     first = time.perf_counter() - start
@@ -99,7 +90,7 @@ def main():
     score = jax.jit(lambda p, f: scene.likelihood(p, f))
     frame = jax.tree.map(lambda x: x[1], scene.observations)
     jax.block_until_ready(score(poses, frame))
-    likelihood = _median_seconds(lambda: jax.block_until_ready(score(poses, frame)), 7)
+    likelihood = median_seconds(lambda: jax.block_until_ready(score(poses, frame)), 7)
     report("likelihood", likelihood * frames, frames)
     stamps = []
     header = {"sequence_starts": list(starts)}
