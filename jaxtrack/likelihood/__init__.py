@@ -9,6 +9,7 @@ from ._base import FunctionLikelihood as FunctionLikelihood
 from ._base import ObservationPart as ObservationPart
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
+from ._base import set_references as set_references
 from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of
 from ._body_calibration import calibrate_body as calibrate_body
@@ -29,7 +30,6 @@ from ._ground import make_ground_prior as make_ground_prior
 from ._histogram import ColourHistogramLikelihood as ColourHistogramLikelihood
 from ._histogram import bhattacharyya_distance as bhattacharyya_distance
 from ._histogram import make_histogram_likelihood as make_histogram_likelihood
-from ._histogram import set_colour_references as set_colour_references
 from ._histogram import soft_histogram as soft_histogram
 from ._keypoints import KeypointLikelihood as KeypointLikelihood
 from ._keypoints import joint_sigmas as joint_sigmas
@@ -57,3 +57,6 @@ from ._silhouette import make_silhouette_likelihood as make_silhouette_likelihoo
 from ._silhouette import silhouette_statistics_dense as silhouette_statistics_dense
 from ._silhouette import silhouette_statistics_windowed as silhouette_statistics_windowed
 from ._silhouette import suggest_window as suggest_window
+from ._template import TemplateLikelihood as TemplateLikelihood
+from ._template import make_template_likelihood as make_template_likelihood
+from ._template import normalised_correlation as normalised_correlation

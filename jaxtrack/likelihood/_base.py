@@ -112,3 +112,15 @@ def as_likelihood(likelihood) -> AbstractLikelihood:
     if callable(likelihood):
         return FunctionLikelihood(likelihood)
     raise TypeError(f"a likelihood must be an AbstractLikelihood or a callable, got {type(likelihood).__name__}")
+
+
+def set_references(likelihood, pose, observation):
+    """``likelihood`` with every term that keeps a reference of the person's appearance (a
+    ``with_reference(pose, observation)`` method: 001's colour histograms, 003's templates) given
+    its reference at ``pose`` (D,) on one frame's ``observation``."""
+    import jax
+
+    def refers(leaf) -> bool:
+        return isinstance(leaf, AbstractLikelihood) and callable(getattr(leaf, "with_reference", None))
+
+    return jax.tree.map(lambda leaf: leaf.with_reference(pose, observation) if refers(leaf) else leaf, likelihood, is_leaf=refers)

@@ -11,7 +11,7 @@ differentiable in the pose. Each colour falls into ``bins`` bins per RGB channel
 (linear) kernel, a soft histogram whose value moves smoothly with the colours.
 
 The reference histograms are the parts' at a known pose on one frame (``with_reference``: the
-start pose on the first frame, set by ``tracking.prepare_test``). 001 updates them as a running
+start pose on the first frame, set by ``tracking.prepare_test`` through ``set_references``). 001 updates them as a running
 weighted average of the estimates' histograms (eq. 18); ``with_reference(..., previous=old,
 rate=r)`` computes that update, but the filters' scan keeps the likelihood fixed, so tracking
 uses the start frame's reference throughout.
@@ -69,7 +69,7 @@ class ColourHistogramLikelihood(AbstractLikelihood):
         bins: bins per colour channel.
         points, across: sample points along and across each part.
 
-    A frame's observation is ``{"images": (C, H, W, 3)}`` colours in [0, 1].
+    A frame's observation is ``{"images": (C, H, W, 3)}`` (or that array itself), colours in [0, 1].
     """
 
     body: BodyModel
@@ -121,7 +121,7 @@ class ColourHistogramLikelihood(AbstractLikelihood):
         """Sigma_h of one pose (D,) on one frame (001 eqs. 17-18); a view with part of the body
         behind its camera costs 1, the most."""
         pose = jnp.asarray(pose)
-        histograms = self.part_histograms(pose, observation["images"])
+        histograms = self.part_histograms(pose, observation["images"] if isinstance(observation, dict) else observation)
         distance = bhattacharyya_distance(self.reference.astype(pose.dtype), histograms)  # (C, K)
         _, in_front = self.sample_points(pose)
         return jnp.mean(jnp.where(in_front[:, None], distance, 1.0))
@@ -131,8 +131,9 @@ class ColourHistogramLikelihood(AbstractLikelihood):
 
     def with_reference(self, pose, images, *, previous=None, rate: float | None = None) -> ColourHistogramLikelihood:
         """This likelihood with its references the parts' histograms at ``pose`` in ``images``
-        (C, H, W, 3); with ``previous`` (C, K, bins**3) and ``rate``, 001 eq. 18's running
-        average ``(1 - rate) previous + rate new``."""
+        (C, H, W, 3), or a frame's observation dict holding them; with ``previous`` (C, K,
+        bins**3) and ``rate``, 001 eq. 18's running average ``(1 - rate) previous + rate new``."""
+        images = images["images"] if isinstance(images, dict) else images
         if previous is not None and (rate is None or not 0 <= rate <= 1):
             raise ValueError(f"a running reference needs a rate in [0, 1], got {rate!r}")
         new = self.part_histograms(jnp.asarray(pose, self.scale.dtype), images)
@@ -151,11 +152,3 @@ def make_histogram_likelihood(body: BodyModel, rig: CameraRig, *, scale: float =
     return ColourHistogramLikelihood(body=body, rig=rig, scale=jnp.asarray(scale, dtype), reference=reference, bins=bins,
                                      points=points, across=across)
 
-
-def set_colour_references(likelihood, pose, observation):
-    """``likelihood`` with every ``ColourHistogramLikelihood`` in it given its references at
-    ``pose`` (D,) on one frame's ``observation`` (a dict holding ``"images"`` (C, H, W, 3))."""
-    def refer(leaf):
-        return leaf.with_reference(pose, observation["images"]) if isinstance(leaf, ColourHistogramLikelihood) else leaf
-
-    return jax.tree.map(refer, likelihood, is_leaf=lambda x: isinstance(x, ColourHistogramLikelihood))

@@ -24,6 +24,7 @@ from ._edges import make_edge_foreground_likelihood
 from ._histogram import make_histogram_likelihood
 from ._keypoints import make_keypoint_likelihood
 from ._silhouette import make_silhouette_likelihood
+from ._template import make_template_likelihood
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,3 +197,24 @@ register_likelihood(LikelihoodRecipe(
     "edge+foreground+histogram", "paper 001's combined weight (001 eq. 19): its edge, foreground and colour-histogram terms "
     "(001 eqs. 12-18), the histograms' references taken at the start pose on the first frame; needs the file's images",
     _edge_foreground_histogram, {"points": 6, "edge_width": 1.0, "bins": 4}, observes=("edges", "foreground", "images")))
+
+
+def _template(inputs: SceneInputs, *, size: int, spacing: float) -> AbstractLikelihood:
+    return make_template_likelihood(inputs.body, inputs.rig, scale=inputs.scale, size=size, spacing=spacing,
+                                    dtype=inputs.body.radii.dtype)
+
+
+register_likelihood(LikelihoodRecipe(
+    "template", "paper 003's template likelihood (003 eq. 7): the normalised correlation of grey patches around each "
+    "projected joint with the joint's template, taken at the start pose on the first frame; needs the file's images",
+    _template, {"size": 7, "spacing": 1.0}, observes=("images",)))
+
+
+def _silhouette_template(inputs: SceneInputs, *, edge_width: float, size: int, spacing: float) -> AbstractLikelihood:
+    return ObservationPart(_silhouette(inputs, edge_width=edge_width), "silhouettes") + ObservationPart(
+        _template(inputs, size=size, spacing=spacing), "images")
+
+
+register_likelihood(LikelihoodRecipe(
+    "silhouette+template", "the silhouettes' likelihood times 003's templates", _silhouette_template,
+    {"edge_width": 1.0, "size": 7, "spacing": 1.0}, observes=("silhouettes", "images")))

@@ -55,7 +55,7 @@ from ..likelihood import (
     maps_from_images,
     maps_from_silhouettes,
     sample_frames,
-    set_colour_references,
+    set_references,
     with_body,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
@@ -429,8 +429,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         say(f"{name}: automatic start: the root placed by the {found['placed_by']}, heading {np.degrees(found['heading']):.0f} deg")
     else:
         initial_pose = truth_poses[0]
-    if "images" in recipe.observes:  # the colour histograms' references, at the start (001 eqs. 17-18)
-        likelihood = set_colour_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
+    if "images" in recipe.observes:  # the appearance references (001's histograms, 003's templates), at the start
+        likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     calibration = None
     tall = person_height_pixels(observed[:, 0]) if observed is not None else keypoint_height_pixels(keypoints[:, 0]) / 0.9
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
@@ -467,7 +467,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
             + f"; silhouette cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
     if "images" in recipe.observes and wanted:  # again, on the calibrated body
-        likelihood = set_colour_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
+        likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     report = None
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])
