@@ -127,7 +127,8 @@ def test_the_automatic_start_lands_near_the_truth_without_reading_it():
         prepare_test(blind, "blind", key=jax.random.key(0))
 
 
-@pytest.mark.xdist_group("colour_film")  # one worker compiles the renderer (--dist loadgroup)
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (ffmpeg writes and reads 8 videos)
+@pytest.mark.xdist_group("colour_film")
 def test_videos_read_back_into_a_sequence_and_bad_input_is_named(filmed, tmp_path):
     motion, rig, solid, pictures, masks = filmed
     empty, _ = render_rgb(jax.random.key(1), solid, rig, motion.pose[:4], fps=30.0, with_body=False, chunk=2)
