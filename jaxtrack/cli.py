@@ -325,6 +325,8 @@ def _track(args) -> int:
         if not args.video:
             raise ValueError("--overlay draws the estimate over the videos: it needs --video")
         args.overlay = check_output(args.overlay, inputs, suffix=".mp4")
+    if args.video and not args.calibration:  # before any file is read
+        raise ValueError("--video needs the cameras: --calibration FILE [FILE ...] (JSON, OpenCV YAML/XML or TOML)")
     validation = load_sequence(args.validation)
     model, header = load_model(args.model)
     stopped = None
