@@ -3,7 +3,9 @@ function that fits it to motion data: the pose random walk of SIR and APF, secon
 (constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
 Condensation, MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals), the
 GPDM's latent dynamics (001 eqs. 7-9) with their noise optionally refitted on validation motion,
-and two wrappers for any of them: a Kalman-tracked velocity and an off-manifold pose residual."""
+and two wrappers for any of them: a Kalman-tracked velocity and an off-manifold pose residual;
+and 004's motion prototypes (a Gaussian mixture fitted to uncertain points) ordered by a
+variable-length Markov model."""
 
 from ._autoregressive import AutoregressivePoseDynamics as AutoregressivePoseDynamics
 from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_dynamics
@@ -31,6 +33,10 @@ from ._mrpf import ManifoldRegularisedTransition as ManifoldRegularisedTransitio
 from ._mrpf import fit_mrpf_transition as fit_mrpf_transition
 from ._mrpf import fit_transition_scales as fit_transition_scales
 from ._mrpf import transition_log_likelihood as transition_log_likelihood
+from ._prototypes import GaussianMixture as GaussianMixture
+from ._prototypes import MixtureFit as MixtureFit
+from ._prototypes import fit_uncertain_mixture as fit_uncertain_mixture
+from ._prototypes import initial_mixture as initial_mixture
 from ._random_walk import PoseRandomWalk as PoseRandomWalk
 from ._random_walk import fit_pose_random_walk as fit_pose_random_walk
 from ._random_walk import make_pose_random_walk as make_pose_random_walk
@@ -43,3 +49,15 @@ from ._velocity import fit_root_velocity as fit_root_velocity
 from ._velocity import fit_state_velocity as fit_state_velocity
 from ._velocity import heading_to_world as heading_to_world
 from ._velocity import world_to_heading as world_to_heading
+from ._vlmm import VLMM as VLMM
+from ._vlmm import SuffixTree as SuffixTree
+from ._vlmm import compile_automaton as compile_automaton
+from ._vlmm import fit_suffix_tree as fit_suffix_tree
+from ._vlmm import fit_vlmm as fit_vlmm
+from ._vlmm_dynamics import VLMMDynamics as VLMMDynamics
+from ._vlmm_dynamics import VLMMFit as VLMMFit
+from ._vlmm_dynamics import augmented_latent as augmented_latent
+from ._vlmm_dynamics import fit_step_scale as fit_step_scale
+from ._vlmm_dynamics import fit_vlmm_dynamics as fit_vlmm_dynamics
+from ._vlmm_dynamics import latent_uncertainties as latent_uncertainties
+from ._vlmm_plot import plot_prototypes as plot_prototypes

@@ -10,6 +10,16 @@ from ._base import ObservationPart as ObservationPart
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
 from ._base import set_references as set_references
+from ._blobs import BlobLikelihood as BlobLikelihood
+from ._blobs import carve as carve
+from ._blobs import fit_blobs as fit_blobs
+from ._blobs import footprint_radii as footprint_radii
+from ._blobs import gaussian_kl as gaussian_kl
+from ._blobs import make_blob_likelihood as make_blob_likelihood
+from ._blobs import mixture_kl as mixture_kl
+from ._blobs import pose_blobs as pose_blobs
+from ._blobs import visual_hull as visual_hull
+from ._blobs import voxel_grid as voxel_grid
 from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of
 from ._body_calibration import calibrate_body as calibrate_body

@@ -20,6 +20,7 @@ from typing import Any
 
 from .._registries import Registry, check_name
 from ._base import AbstractLikelihood, ObservationPart
+from ._blobs import make_blob_likelihood
 from ._edges import make_edge_foreground_likelihood
 from ._histogram import make_histogram_likelihood
 from ._keypoints import make_keypoint_likelihood
@@ -218,3 +219,14 @@ def _silhouette_template(inputs: SceneInputs, *, edge_width: float, size: int, s
 register_likelihood(LikelihoodRecipe(
     "silhouette+template", "the silhouettes' likelihood times 003's templates", _silhouette_template,
     {"edge_width": 1.0, "size": 7, "spacing": 1.0}, observes=("silhouettes", "images")))
+
+
+def _blobs(inputs: SceneInputs, *, power: float, voxel: float, iterations: int) -> AbstractLikelihood:
+    return make_blob_likelihood(inputs.body, inputs.rig, power=power, voxel=voxel, iterations=iterations,
+                                dtype=inputs.body.radii.dtype)
+
+
+register_likelihood(LikelihoodRecipe(
+    "blobs", "paper 004's volumetric likelihood: the silhouettes' visual hull (coarse to fine) summarised by Gaussian "
+    "blobs, each particle's blobs scored by their relative entropy to those (004 eqs. 6-7)", _blobs,
+    {"power": 1.0, "voxel": 0.05, "iterations": 5}))

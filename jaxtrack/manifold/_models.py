@@ -216,6 +216,11 @@ class BCGPLVM(AbstractSaveableManifold):
     def latent(self):
         return self.back(self.data)
 
+    @property
+    def latent_dim(self) -> int:
+        # From the shapes: evaluating g(Y) for it would run the float64 map outside float64 mode.
+        return int(self.back.bias.shape[0])
+
     def training_latent(self):
         return self.latent
 

@@ -1,0 +1,25 @@
+"""VLMM-PF (004 sec. 5): Condensation over the augmented latent space of a back-constrained
+GPLVM, moved by motion prototypes whose order a variable-length Markov model predicts
+(``dynamics.VLMMDynamics``); weights from any likelihood of the library; estimate ``mu(E[x])``
+with the global entries' weighted mean."""
+
+from ..dynamics import fit_vlmm_dynamics
+from ._latentpf import latent_pf_filter
+from ._registry import TrackerRecipe
+
+
+def fit(key, motion):
+    dynamics, _ = fit_vlmm_dynamics(motion.manifold, list(motion.validation), motion.training_starts, key=key)
+    return dynamics
+
+
+def build(dynamics, likelihood, budget):
+    return latent_pf_filter(dynamics, likelihood, budget.particles)
+
+
+# 004 sec. 7 learns a 3-D latent space (jumping jacks, 100 pseudo-points) and a 5-label memory.
+LATENT_DIM = 3
+
+RECIPE = TrackerRecipe("vlmmpf", "VLMM-PF", "motion prototypes ordered by a variable-length Markov model (004 sec. 5)", fit,
+                       build, needs_manifold=True, manifold="bc-gplvm", manifolds=("bc-gplvm",), velocity=True,
+                       latent_dim=LATENT_DIM, residual=0.0)
