@@ -4,6 +4,9 @@ float32, 2 XLA threads; compile time (first call) reported separately from the s
 same process, is the reference: each line carries the ratio ``fps / fps_SIR``.
 
     taskset -c 0,1 python benchmarks/bench_trackers.py --budgets 100 500 2000 --frames 30 --repeats 3 --json trackers.json
+    taskset -c 0,1 python benchmarks/bench_trackers.py --methods vlmmpf mrpf --budgets 500 --likelihood blobs
+
+``--likelihood`` tracks with another registered likelihood (default the silhouettes').
 
 Prints one JSON line per (method, budget) and, with ``--json PATH``, writes the list there.
 """
@@ -24,6 +27,9 @@ def main():
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--likelihood", default="silhouette", help="a registered likelihood (e.g. blobs, 004's)")
+    parser.add_argument("--likelihood-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="an option of that likelihood, e.g. power=10 (numbers)")
     parser.add_argument("--json", help="also write the rows to this JSON file")
     args = parser.parse_args()
     pin_threads(args.threads)
@@ -59,7 +65,8 @@ def main():
             model, starts = (None, None) if spec is None else fit_manifold(train_poses, spec[1], 100, kind=spec[0])[::2]
             motions[spec] = motion_data(train_poses, validation_poses, model, starts)
         fitted[m] = fit_tracker(recipe, tracker_keys(0, m)[0], motions[spec])
-    scene = prepare_test(test[0], "S1 walk", key=key)
+    options = {k: float(v) for k, v in (item.split("=", 1) for item in args.likelihood_option)}
+    scene = prepare_test(test[0], "S1 walk", key=key, likelihood=args.likelihood, likelihood_options=options)
     rows = []
     for budget in args.budgets:
         reference = None
@@ -76,7 +83,8 @@ def main():
             fps = args.frames / float(np.median(times))
             reference = fps if method == "sir" else reference
             if method in methods:
-                row = {"method": method, "budget": budget, "frames": args.frames, "window": scene.likelihood.window,
+                row = {"method": method, "budget": budget, "frames": args.frames, "likelihood": args.likelihood,
+                       "window": getattr(scene.likelihood, "window", None),
                        "compile_s": round(first - args.frames / fps, 2), "frames_per_s": round(fps, 1),
                        "ms_per_frame": round(1000 / fps, 1), "ratio_to_sir": round(fps / reference, 2),
                        "device": jax.devices()[0].device_kind}

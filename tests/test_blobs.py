@@ -112,6 +112,7 @@ def walk_frame():
     return body, rig, pose, eqx.filter_jit(hard_silhouettes)(body, rig, pose).astype(jnp.float32)
 
 
+@pytest.mark.slow  # 6-7 s cold; the default suite is at its 5-minute limit
 def test_visual_hull_equals_brute_force(walk_frame):
     _, rig, pose, silhouettes = walk_frame
     for voxel in (0.05,):
@@ -127,6 +128,7 @@ def test_visual_hull_equals_brute_force(walk_frame):
     assert bool(jnp.all(carve(silhouettes, rig, points[occupied])))
 
 
+@pytest.mark.slow  # 6-7 s cold; the default suite is at its 5-minute limit
 def test_blob_likelihood_prefers_the_true_pose(walk_frame):
     body, rig, pose, silhouettes = walk_frame
     likelihood = make_blob_likelihood(body, rig)

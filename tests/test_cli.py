@@ -119,6 +119,7 @@ def test_track_exits_non_zero_when_it_tracked_blind(tmp_path, capsys):
     assert main([*args, "--max-degenerate", "1"]) == 0
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_writes_are_atomic_and_name_the_file_written(tmp_path):
     from jaxtrack.io import atomic_write, check_output, output_file
 

@@ -193,3 +193,12 @@ def test_batched_runs_equal_separate_runs(sequences):
         np.testing.assert_allclose(b["per_frame_error_mm_per_run"], a["per_frame_error_mm_per_run"], atol=0.1)
         assert a["compile_s"] is not None and b["compile_s"] is None
         np.testing.assert_allclose(separate["estimates"]["walk"][method][1], batched["estimates"]["walk"][method][1], atol=1e-4)
+
+
+def test_error_curves_are_drawn_when_every_method_was_refused(tmp_path):
+    """A test sequence left without any result (every method refused) still gets its panel."""
+    from jaxtrack.experiment import plot_error_curves
+
+    results = {"sequences": {"walk": {}, "jog": {"sir": {"per_frame_error_mm": [10.0, 12.0, 11.0]}}}}
+    path = plot_error_curves(results, str(tmp_path / "curves.png"))
+    assert (tmp_path / "curves.png").stat().st_size > 1000 and path.endswith("curves.png")

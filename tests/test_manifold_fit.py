@@ -169,7 +169,7 @@ def _reference_lbfgs(value_and_grad, x, steps, memory):
     return x, np.array(losses)
 
 
-@pytest.mark.parametrize("memory", [3, 10])
+@pytest.mark.parametrize("memory", [3, pytest.param(10, marks=pytest.mark.slow)])  # each 8-10 s cold; one in the default suite
 def test_jitted_lbfgs_takes_the_steps_of_a_plain_numpy_lbfgs(memory):
     """The default optimiser (one evaluation per ``lax.while_loop`` iteration, its line search
     a state of the loop) against the same algorithm written plainly: the same 25 steps. With 3

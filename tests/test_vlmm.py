@@ -101,6 +101,7 @@ def test_mml_selects_the_true_number_of_components(seed):
     assert min(fit.message_lengths, key=fit.message_lengths.get) == 4
 
 
+@pytest.mark.slow  # 6-7 s cold; the default suite is at its 5-minute limit
 def test_mixture_survives_collapse_and_refuses_bad_input():
     with jax.enable_x64(True):
         x = np.concatenate([np.zeros((5, 2)), np.ones((40, 2)) + 0.1 * np.random.default_rng(0).standard_normal((40, 2))])
@@ -195,6 +196,7 @@ def _two_prototype_dynamics(switch_probability):
     return dynamics
 
 
+@pytest.mark.slow  # 6-7 s cold; the default suite is at its 5-minute limit
 def test_vlmm_transition_switches_at_gamma_rate():
     dynamics = _two_prototype_dynamics(0.2)
     vlmm = dynamics.vlmm

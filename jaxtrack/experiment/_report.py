@@ -47,7 +47,8 @@ def plot_error_curves(results: dict, path: str) -> str:
         ax.set_title(name, fontsize=10)
         ax.set_xlabel("frame")
         ax.set_ylabel("error (mm)")
-        ax.legend(fontsize=7, ncol=len(results["sequences"][name]))
+        if results["sequences"][name]:  # every method may have been refused
+            ax.legend(fontsize=7, ncol=len(results["sequences"][name]))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
