@@ -166,7 +166,8 @@ def _fit(args) -> int:
     from .tracking import fit_manifold
 
     args.out = check_output(args.out, args.motion)
-    kind = get_manifold_kind(args.model)
+    with_vlmm = args.model == "vlmm"  # 004: a BC-GPLVM, its prototypes and their automaton in one file
+    kind = get_manifold_kind("bc-gplvm" if with_vlmm else args.model)
     options = _options(args.manifold_option, kind.options, f"manifold kind {kind.name!r}")
     if args.inducing is not None:
         if "num_inducing" not in kind.options:
@@ -184,10 +185,27 @@ def _fit(args) -> int:
         raise ValueError("the motion files have different pose layouts")
     # The manifold models joint angles only, not the global position and orientation: the same
     # fit as ``jaxtrack experiment``'s (tracking.fit_manifold, the key from --seed).
-    fitted, info, starts = fit_manifold(poses, args.latent_dim, args.steps, kind=kind.name, progress=True,
+    latent_dim = args.latent_dim
+    if with_vlmm and latent_dim is None:
+        from .tracking import get_tracker
+
+        latent_dim = get_tracker("vlmmpf").latent_dim
+    fitted, info, starts = fit_manifold(poses, latent_dim, args.steps, kind=kind.name, progress=True,
                                         optimiser=args.optimiser, key=jax.random.key(args.seed), **options)
     kept_layout = list(next(iter(layouts)))[GLOBAL_DOFS:]
-    save_model(args.out, fitted, sequence_starts=starts, extra={"pose_layout": kept_layout, "sequences": names})
+    extra = {"pose_layout": kept_layout, "sequences": names}
+    if with_vlmm:
+        from .dynamics import fit_vlmm_dynamics, vlmm_to_record
+        from .manifold import make_manifold_prior
+
+        # The global entries' walk is fitted on the same motion (experiment and track fit it on
+        # their validation files instead).
+        prior = make_manifold_prior(fitted, poses[0].shape[1])
+        dynamics, _ = fit_vlmm_dynamics(prior, poses, starts, key=jax.random.key(args.seed))
+        extra["vlmm"] = vlmm_to_record(dynamics)
+        print(f"{dynamics.prototypes.num_components} motion prototypes, a VLMM of {dynamics.vlmm.num_states} states "
+              f"(004 sec. 5)")
+    save_model(args.out, fitted, sequence_starts=starts, extra=extra)
     print(f"wrote {args.out}: {type(fitted).__name__}, {starts[-1]} frames, objective {info.objective:.6g} after {info.steps} steps")
     return 0
 
@@ -220,6 +238,9 @@ def _plot_latent(args) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)  # models are saved in float64
+    import numpy as np
+
+    from .body import GLOBAL_DOFS
     from .io import check_output
     from .manifold import load_model, plot_latent
 
@@ -227,6 +248,18 @@ def _plot_latent(args) -> int:
     model, header = load_model(args.model)
     plot_latent(model, out, sequence_starts=header["sequence_starts"], labels=header["extra"].get("sequences"))
     print(f"wrote {out}")
+    record = header["extra"].get("vlmm")
+    if record is not None:  # a file of jaxtrack fit --model vlmm: its prototypes too
+        from .dynamics import augmented_latent, plot_prototypes, vlmm_from_record
+        from .manifold import make_manifold_prior
+
+        prior = make_manifold_prior(model, GLOBAL_DOFS + model.data_dim)
+        dynamics = vlmm_from_record(record, prior)
+        augmented = augmented_latent(np.asarray(prior.training_latent), header["sequence_starts"])
+        labels = np.asarray(dynamics.prototypes.labels(jax.numpy.asarray(augmented)))
+        path = check_output(os.path.splitext(out)[0] + "_prototypes.png", [args.model])
+        plot_prototypes(dynamics, augmented, labels, path)
+        print(f"wrote {path}")
     return 0
 
 
@@ -578,9 +611,11 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
     fit.add_argument("--plugin", action="append", default=[],
                      help="a module (dotted name or .py file) to import first; it may register manifold kinds")
-    fit.add_argument("--model", choices=manifold_kinds(), default="bc-gplvm",
+    fit.add_argument("--model", choices=[*manifold_kinds(), "vlmm"], default="bc-gplvm",
                      help="a registered manifold kind: " + "; ".join(f"{k}: {get_manifold_kind(k).description}"
-                                                                    for k in manifold_kinds()) + " (default: %(default)s)")
+                                                                    for k in manifold_kinds())
+                     + "; vlmm: a bc-gplvm (3-D unless --latent-dim) with paper 004's motion prototypes and VLMM "
+                       "fitted on it and stored in the same file (default: %(default)s)")
     fit.add_argument("--manifold-option", action="append", metavar="KEY=VALUE",
                      help="an option of the manifold kind's maker (e.g. num_inducing=100 for sparse-gplvm)")
     fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")

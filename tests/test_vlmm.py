@@ -270,3 +270,36 @@ def test_vlmmpf_tracks_and_never_leaks_nans():
     assert bool(np.all(np.asarray(info.degenerate)))
     assert all(not np.any(np.isnan(np.asarray(leaf))) for leaf in jax.tree.leaves((state, info))
                if jnp.issubdtype(jnp.asarray(leaf).dtype, jnp.floating))
+
+
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
+def test_fit_model_vlmm_stores_the_prototypes_and_automaton(tmp_path):
+    """``jaxtrack fit --model vlmm``: one file holds the BC-GPLVM and the VLMM-PF's prototypes and
+    automaton; read back they are the dynamics that were fitted, and plot-latent draws them."""
+    from jaxtrack.cli import main
+    from jaxtrack.data import generate_motion, motion_sequence
+    from jaxtrack.dynamics import vlmm_from_record, vlmm_to_record
+    from jaxtrack.io import save_sequence
+    from jaxtrack.manifold import load_model, make_manifold_prior, read_header
+
+    paths = []
+    for i, gait in enumerate(("walk", "jog")):
+        path = str(tmp_path / f"{gait}.npz")
+        save_sequence(path, motion_sequence(generate_motion(gait, "S1", num_frames=40, fps=30.0, key=jax.random.key(i))))
+        paths.append(path)
+    out = str(tmp_path / "m.eqx")
+    assert main(["fit", *paths, "--model", "vlmm", "--steps", "5", "--out", out]) == 0
+    record = read_header(out)["extra"]["vlmm"]
+    with jax.enable_x64(True):
+        model, _ = load_model(out)
+        prior = make_manifold_prior(model, 6 + model.data_dim)
+        dynamics = vlmm_from_record(record, prior)
+        assert prior.latent_dim == 3 and dynamics.prototypes.dim == 6
+        again = vlmm_to_record(dynamics)
+    assert again == record
+    assert main(["plot-latent", out, "--out", str(tmp_path / "latent.png")]) == 0
+    assert (tmp_path / "latent_prototypes.png").stat().st_size > 5000
+    with pytest.raises(ValueError, match="version"):
+        vlmm_from_record({**record, "version": 99}, prior)
+    with pytest.raises(ValueError, match="output"):
+        vlmm_from_record({**record, "output": record["output"][:-1]}, prior)

@@ -60,4 +60,6 @@ from ._vlmm_dynamics import augmented_latent as augmented_latent
 from ._vlmm_dynamics import fit_step_scale as fit_step_scale
 from ._vlmm_dynamics import fit_vlmm_dynamics as fit_vlmm_dynamics
 from ._vlmm_dynamics import latent_uncertainties as latent_uncertainties
+from ._vlmm_dynamics import vlmm_from_record as vlmm_from_record
+from ._vlmm_dynamics import vlmm_to_record as vlmm_to_record
 from ._vlmm_plot import plot_prototypes as plot_prototypes

@@ -244,3 +244,55 @@ def fit_vlmm_dynamics(manifold: ManifoldPrior, validation, training_starts=None,
         s_global=jnp.asarray(rms_step([s[:, :g] for s in sequences], floor), dtype), step_scale=jnp.asarray(step_scale, dtype),
     )
     return dynamics, VLMMFit(augmented, uncertainties, pieces, mixture_fit, tree)
+
+
+VLMM_RECORD_VERSION = 1
+
+
+def vlmm_to_record(dynamics: VLMMDynamics) -> dict:
+    """The prototypes, automaton and scales of fitted VLMM-PF dynamics as JSON-ready lists (the
+    ``"vlmm"`` entry ``jaxtrack fit --model vlmm`` stores beside its BC-GPLVM)."""
+    as_list = lambda a: np.asarray(a, np.float64).tolist()  # noqa: E731
+    return {
+        "version": VLMM_RECORD_VERSION,
+        "weights": as_list(dynamics.prototypes.weights),
+        "means": as_list(dynamics.prototypes.means),
+        "covariances": as_list(dynamics.prototypes.covariances),
+        "transition": np.asarray(dynamics.vlmm.transition).astype(int).tolist(),
+        "output": as_list(dynamics.vlmm.output),
+        "initial": as_list(dynamics.vlmm.initial),
+        "contexts": [list(c) for c in dynamics.vlmm.contexts],
+        "s_global": as_list(dynamics.s_global),
+        "step_scale": float(dynamics.step_scale),
+    }
+
+
+def vlmm_from_record(record: dict, manifold: ManifoldPrior) -> VLMMDynamics:
+    """``VLMMDynamics`` on ``manifold`` from a ``vlmm_to_record`` dict.
+
+    Raises:
+        ValueError: an unknown version, a missing entry, or tables whose shapes disagree (named).
+    """
+    if not isinstance(record, dict) or record.get("version") != VLMM_RECORD_VERSION:
+        raise ValueError(f"not a VLMM record of version {VLMM_RECORD_VERSION} (got version "
+                         f"{record.get('version') if isinstance(record, dict) else type(record).__name__})")
+    missing = [k for k in ("weights", "means", "covariances", "transition", "output", "initial", "contexts", "s_global",
+                           "step_scale") if k not in record]
+    if missing:
+        raise ValueError(f"the VLMM record lacks {', '.join(missing)}")
+    dtype = manifold.training_latent.dtype
+    arrays = {k: np.asarray(record[k], np.float64) for k in ("weights", "means", "covariances", "output", "initial", "s_global")}
+    transition = np.asarray(record["transition"], np.int64)
+    M, Q = arrays["weights"].shape[0], transition.shape[0]
+    shapes = {"means": (M, 2 * manifold.latent_dim), "covariances": (M, 2 * manifold.latent_dim, 2 * manifold.latent_dim),
+              "output": (Q, M), "initial": (Q,), "s_global": (manifold.global_dims,)}
+    for name, shape in shapes.items():
+        if arrays[name].shape != shape:
+            raise ValueError(f"the VLMM record's {name} has shape {arrays[name].shape}, expected {shape}")
+    if transition.shape != (Q, M) or transition.min() < 0 or transition.max() >= Q or len(record["contexts"]) != Q:
+        raise ValueError(f"the VLMM record's transition table must be ({Q}, {M}) states, with one context per state")
+    vlmm = VLMM(transition=jnp.asarray(transition, jnp.int32), output=jnp.asarray(arrays["output"], dtype),
+                initial=jnp.asarray(arrays["initial"], dtype), contexts=tuple(tuple(int(v) for v in c) for c in record["contexts"]))
+    prototypes = GaussianMixture(*(jnp.asarray(arrays[k], dtype) for k in ("weights", "means", "covariances")))
+    return VLMMDynamics(manifold=manifold, prototypes=prototypes, vlmm=vlmm, s_global=jnp.asarray(arrays["s_global"], dtype),
+                        step_scale=jnp.asarray(float(record["step_scale"]), dtype))
