@@ -59,6 +59,18 @@ def small_experiment_sequences():
     return train, [motion("walk", 20, 7)], [small_scene()[2]]
 
 
+def small_tracking_inputs(frames: int):
+    """``small_experiment_sequences`` ready to track: the test walk's prepared scene (its first
+    ``frames`` frames) and the training and validation poses, all with key 0."""
+    from jaxtrack.tracking import prepare_test, sequence_poses
+
+    train, validation, test = small_experiment_sequences()
+    key = jax.random.key(0)
+    scene = prepare_test(test[0], "walk", key=key, frames=frames)
+    return (scene, [sequence_poses(s, "train", key=key) for s in train],
+            [sequence_poses(s, "validation", key=key) for s in validation])
+
+
 def walk_and_gpdm_prior():
     """A 60-frame synthetic walk (poses (60, 32), float64) and a 2-D GPDM prior on its first 45
     frames, PCA-initialised and unfitted (the maps are what the dynamics tests test)."""

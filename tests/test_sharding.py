@@ -39,15 +39,11 @@ print("ok")
 EVERY_TRACKER = """
 import equinox as eqx, jax, jax.numpy as jnp, numpy as np
 jax.config.update("jax_enable_x64", True)
-from helpers import small_experiment_sequences
+from helpers import small_tracking_inputs
 from jaxtrack.filters import particle_sharding, run_filter
-from jaxtrack.tracking import (Budget, build_tracker, fit_manifold, fit_tracker, get_tracker, motion_data, prepare_test,
-                               sequence_poses)
-train, validation, test = small_experiment_sequences()
+from jaxtrack.tracking import Budget, build_tracker, fit_manifold, fit_tracker, get_tracker, motion_data
 key = jax.random.key(0)
-scene = prepare_test(test[0], "walk", key=key, frames=6)
-train_poses = [sequence_poses(s, "train", key=key) for s in train]
-validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
+scene, train_poses, validation_poses = small_tracking_inputs(6)
 model, _, starts = fit_manifold(train_poses, 2, 10, kind="gpdm")
 motion = motion_data(train_poses, validation_poses, model, starts)
 # The trackers run in float32; in float32 the sharded sums run in another order, and resampling

@@ -23,7 +23,7 @@ from jaxtrack.tracking import (
     unregister_tracker,
 )
 
-from helpers import small_experiment_sequences
+from helpers import small_experiment_sequences, small_tracking_inputs
 
 
 class DampedWalk(AbstractDynamics):
@@ -316,14 +316,11 @@ def test_every_paper_tracker_tracking_blind_leaks_no_nans():
     walk) and with an off-manifold residual: every frame is reported degenerate, and the
     estimates, weights and particles stay finite."""
     from jaxtrack.likelihood import as_likelihood
-    from jaxtrack.tracking import PAPER_TRACKERS, fit_manifold, fit_tracker, motion_data, prepare_test, sequence_poses
+    from jaxtrack.tracking import PAPER_TRACKERS, fit_manifold, fit_tracker, motion_data
 
-    train, validation, test = small_experiment_sequences()
     key = jax.random.key(0)
-    scene = prepare_test(test[0], "walk", key=key, frames=4)
+    scene, train_poses, validation_poses = small_tracking_inputs(4)
     blind = as_likelihood(lambda poses, observation: jnp.full(poses.shape[0], -jnp.inf, poses.dtype))
-    train_poses = [sequence_poses(s, "train", key=key) for s in train]
-    validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
     motions = {}
     for name in PAPER_TRACKERS:
         recipe = get_tracker(name)

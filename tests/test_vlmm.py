@@ -237,25 +237,12 @@ def test_vlmmpf_tracks_and_never_leaks_nans():
     from jaxtrack.evaluation import mean_joint_error_mm
     from jaxtrack.filters import run_filter
     from jaxtrack.likelihood import as_likelihood
-    from jaxtrack.tracking import (
-        Budget,
-        build_tracker,
-        fit_manifold,
-        fit_tracker,
-        get_tracker,
-        motion_data,
-        prepare_test,
-        sequence_poses,
-        track,
-    )
+    from jaxtrack.tracking import Budget, build_tracker, fit_manifold, fit_tracker, get_tracker, motion_data, track
 
-    from helpers import small_experiment_sequences
+    from helpers import small_tracking_inputs
 
-    train, validation, test = small_experiment_sequences()
     key = jax.random.key(0)
-    scene = prepare_test(test[0], "walk", key=key, frames=12)
-    train_poses = [sequence_poses(s, "train", key=key) for s in train]
-    validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
+    scene, train_poses, validation_poses = small_tracking_inputs(12)
     model, _, starts = fit_manifold(train_poses, 3, 30, kind="bc-gplvm")
     recipe = get_tracker("vlmmpf")
     fitted = fit_tracker(recipe, key, motion_data(train_poses, validation_poses, model, starts))
