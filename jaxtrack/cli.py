@@ -163,9 +163,12 @@ def _fit(args) -> int:
     from .body import GLOBAL_DOFS
     from .io import check_output, load_sequence
     from .manifold import get_manifold_kind, save_model
+    from .manifold._models import check_training_data
     from .tracking import fit_manifold
 
     args.out = check_output(args.out, args.motion)
+    if args.model == "spm-gplvm":
+        return _fit_spm(args)
     with_vlmm = args.model == "vlmm"  # 004: a BC-GPLVM, its prototypes and their automaton in one file
     kind = get_manifold_kind("bc-gplvm" if with_vlmm else args.model)
     options = _options(args.manifold_option, kind.options, f"manifold kind {kind.name!r}")
@@ -179,6 +182,7 @@ def _fit(args) -> int:
         if seq.pose is None:
             raise ValueError(f"{path}: has no 'pose' key (make one with 'jaxtrack convert')")
         layouts.add(tuple(str(n) for n in seq.pose_layout))
+        check_training_data(seq.pose, 1, name=f"{path}: 'pose'")  # before any fitting, naming the file
         poses.append(np.asarray(seq.pose, np.float64))
         names.append(os.path.basename(path))
     if len(layouts) != 1 or len({p.shape[1] for p in poses}) != 1:
@@ -207,6 +211,80 @@ def _fit(args) -> int:
               f"(004 sec. 5)")
     save_model(args.out, fitted, sequence_starts=starts, extra=extra)
     print(f"wrote {args.out}: {type(fitted).__name__}, {starts[-1]} frames, objective {info.objective:.6g} after {info.steps} steps")
+    return 0
+
+
+def _fit_spm(args) -> int:
+    """``jaxtrack fit --model spm-gplvm``: 3-D joints seen from the view sphere as SPM poses, 003's
+    active-set GPLVM, its latent random walk and the baselines' AR(2), in one file."""
+    import numpy as np
+
+    from .io import load_sequence
+    from .planar import fit_spm_model, save_spm_model
+
+    options = _options(args.manifold_option, {"active": 200, "every": 3, "iterations": 3}, "spm-gplvm")
+    joints = []
+    for path in args.motion:
+        seq = load_sequence(path)
+        if seq.joints3d is None:
+            raise ValueError(f"{path}: has no 'joints3d' key (3-D joints are what the view sphere projects)")
+        names = [str(n) for n in seq.joint_names]
+        from .planar import SPM_MARKERS
+
+        missing = [m for m in SPM_MARKERS if m not in names]
+        if missing:
+            raise ValueError(f"{path}: its joints lack the SPM markers {', '.join(missing)}")
+        full = np.asarray(seq.joints3d, np.float64)
+        from .body import HUMANEVA_JOINTS
+
+        index = [names.index(m) if m in names else 0 for m in HUMANEVA_JOINTS]
+        joints.append(full[:, index])
+    model, starts = fit_spm_model(joints, latent_dim=args.latent_dim or 3, active=options.get("active", 200),
+                                  every=options.get("every", 3), iterations=options.get("iterations", 3), max_steps=args.steps,
+                                  progress=True)
+    save_spm_model(args.out, model, starts)
+    print(f"wrote {args.out}: ActiveSetGPLVM of {starts[-1]} SPM poses (active set {model.manifold.active.shape[0]}), "
+          f"latent step sd {np.round(np.asarray(model.step_sd), 4).tolist()}")
+    return 0
+
+
+def _track2d(args) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # models are saved in float64
+    import numpy as np
+
+    from .io import VideoWriter, atomic_write, check_output
+    from .planar import SPM_MARKERS, draw_markers, load_spm_model, read_first_markers, track_video
+
+    out = check_output(args.out, [args.video, args.markers, args.model], suffix=".npz")
+    overlay = None if args.no_overlay else check_output(os.path.splitext(out)[0] + "_overlay.mp4", [args.video])
+    model = load_spm_model(args.model)
+    first = read_first_markers(args.markers)
+
+    def save(markers):
+        with atomic_write(out) as handle:
+            np.savez(handle, markers2d=np.asarray(markers, np.float64), marker_names=np.array(SPM_MARKERS))
+
+    writer = None
+    try:
+        def on_chunk(first_frame, rgb, markers):
+            nonlocal writer
+            save(markers)
+            if overlay is not None:
+                if writer is None:
+                    writer = VideoWriter([overlay], fps=args.fps)
+                drawn = draw_markers(rgb[: len(markers) - first_frame], markers[first_frame:])
+                even = drawn[:, : drawn.shape[1] // 2 * 2, : drawn.shape[2] // 2 * 2]
+                writer.write(even[None])
+
+        markers = track_video(args.method, model, args.video, first, key=jax.random.key(args.seed), frames=args.frames,
+                              chunk=args.chunk_frames, on_chunk=on_chunk)
+    finally:
+        if writer is not None:
+            writer.close()
+    print(f"wrote {out}: {len(markers)} frames of {len(SPM_MARKERS)} markers ({args.method})"
+          + (f", and {overlay}" if overlay else ""))
     return 0
 
 
@@ -611,11 +689,13 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("motion", nargs="+", help="sequence files (.npz) with pose vectors")
     fit.add_argument("--plugin", action="append", default=[],
                      help="a module (dotted name or .py file) to import first; it may register manifold kinds")
-    fit.add_argument("--model", choices=[*manifold_kinds(), "vlmm"], default="bc-gplvm",
+    fit.add_argument("--model", choices=[*manifold_kinds(), "vlmm", "spm-gplvm"], default="bc-gplvm",
                      help="a registered manifold kind: " + "; ".join(f"{k}: {get_manifold_kind(k).description}"
                                                                     for k in manifold_kinds())
                      + "; vlmm: a bc-gplvm (3-D unless --latent-dim) with paper 004's motion prototypes and VLMM "
-                       "fitted on it and stored in the same file (default: %(default)s)")
+                       "fitted on it and stored in the same file; spm-gplvm: paper 003's active-set GPLVM of the motion's "
+                       "3-D joints seen from the view sphere as scaled-prismatic-model poses, for track2d (options "
+                       "active=200, every=3, iterations=3) (default: %(default)s)")
     fit.add_argument("--manifold-option", action="append", metavar="KEY=VALUE",
                      help="an option of the manifold kind's maker (e.g. num_inducing=100 for sparse-gplvm)")
     fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")
@@ -703,6 +783,26 @@ def build_parser() -> argparse.ArgumentParser:
                             "(default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)
+
+    track2d = sub.add_parser("track2d", help="track a person's upper body in one monocular video (paper 003), from the "
+                                              "first frame's markers")
+    track2d.add_argument("--video", required=True, help="a video file or image folder")
+    track2d.add_argument("--markers", required=True,
+                         help='JSON {"markers": {"head": [x, y], ...}}: the first frame\'s markers in pixels, named '
+                              "pelvis, thorax, head, lshoulder, lelbow, lwrist, rshoulder, relbow, rwrist")
+    track2d.add_argument("--model", required=True, help="a model file from 'jaxtrack fit --model spm-gplvm'")
+    track2d.add_argument("--method", default="latentpf2d", choices=("latentpf2d", "condensation2d", "mht2d"),
+                         help="latentpf2d: 003's Condensation in the latent space (200 particles); condensation2d: "
+                              "Condensation on a shoulder-anchored arm chain with an AR(2) model (1000 particles); mht2d: "
+                              "multiple-hypothesis tracking on that chain (10 modes) (default: %(default)s)")
+    track2d.add_argument("--frames", type=int, help="track the first FRAMES frames (default: all)")
+    track2d.add_argument("--seed", type=int, default=0)
+    track2d.add_argument("--chunk-frames", type=int, default=64,
+                         help="frames read and tracked at a time; the tracks so far are written after each (default: %(default)s)")
+    track2d.add_argument("--fps", type=float, default=30.0, help="the overlay video's frame rate (default: %(default)s)")
+    track2d.add_argument("--no-overlay", action="store_true", help="skip the overlay video (OUT_overlay.mp4)")
+    track2d.add_argument("--out", required=True, help="output .npz: markers2d (T, 9, 2) pixels and marker_names")
+    track2d.set_defaults(run=_track2d)
 
     plot = sub.add_parser("plot-latent", help="draw a fitted model's latent space over its predictive variance")
     plot.add_argument("model", help="a model file written by 'jaxtrack fit'")

@@ -66,6 +66,7 @@ def test_bad_experiment_inputs(sequences):
         run_experiment(train, validation, train[:1], ExperimentConfig(runs=1), progress=False)
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_bad_inputs_fail_before_any_fitting(sequences, monkeypatch):
     """Frame rates that differ, and a second test file whose silhouettes are empty, used to be
     found after minutes of fitting and tracking (or never): now before the first fit."""

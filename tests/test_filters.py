@@ -40,6 +40,7 @@ def test_resampler_counts_match_expected_values(name, getkey):
         assert np.all(np.abs(counts - n * weights) < 1.0 + 1e-9)
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_degenerate_weights_are_uniform_and_finite(getkey):
     for bad in (jnp.full(5, -jnp.inf), jnp.full(5, jnp.nan), jnp.array([jnp.nan, -jnp.inf, jnp.nan, -jnp.inf, -jnp.inf])):
         normalised, degenerate = normalise_log_weights(bad)
@@ -315,6 +316,7 @@ def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey, proposal)
     assert np.abs(np.asarray(c[1].estimate) - np.asarray(a[1].estimate)).max() > 1e-4
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_mrpf_with_an_overflowing_manifold_scale_stays_finite(walk_prior, getkey):
     """A manifold scale that overflows float32 (a fitted s_zx the data leave unbounded) makes the
     float32 MRPF exactly SIR, with no NaN (a Bandai run once gave s_zx = 2e47)."""

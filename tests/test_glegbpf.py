@@ -29,6 +29,7 @@ def _loops():
     return [loop(120, 40, 0.0), loop(150, 50, 0.4)]
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_fit_gle_embeds_the_training_loops_and_maps_back():
     sequences = _loops()
     model = fit_gle(sequences, latent_dim=3, components=20)

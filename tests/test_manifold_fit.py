@@ -242,3 +242,18 @@ def test_fit_reports_progress_from_inside_the_loop(capsys):
         fit_model(_small_gplvm(), report_every=0)
     with pytest.raises(ValueError, match="tolerance must be a finite number"):
         fit_model(_small_gplvm(), tolerance=float("nan"))
+
+
+def test_a_model_with_non_finite_parameters_is_never_saved(tmp_path):
+    from jaxtrack.manifold import ModelFileError, save_model
+
+    Y = np.random.default_rng(0).normal(size=(12, 4))
+    model = make_gplvm(Y, 2)
+    broken = eqx.tree_at(lambda m: m.latent, model, model.latent.at[3, 1].set(jnp.nan))
+    with pytest.raises(ModelFileError, match=r"not saved: the model's \.latent are not finite"):
+        save_model(tmp_path / "m.eqx", broken)
+    assert not (tmp_path / "m.eqx").exists()
+    # Training data far beyond any pose is refused before fitting, naming where.
+    Y[5, 2] = 1e300
+    with pytest.raises(ValueError, match="hold 1e\\+300 at frame 5, dimension 2"):
+        make_gplvm(Y, 2)

@@ -418,6 +418,7 @@ def test_mixture_draws_follow_its_density(gpdm_prior, walk, getkey):
     np.testing.assert_allclose(dynamics.log_transition(previous, states), global_part + latent, rtol=1e-9)
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_gpdm_noise_is_the_gpdms_own_draw(gpdm_prior, walk, getkey):
     """The default (``latent_noise="gpdm"``) draws exactly ``mean + [s_global, sigma_X] * N(0, 1)``
     from the proposal's key, as before the mixture existed; an unknown fit is refused."""

@@ -28,6 +28,7 @@ def scene():
     return motion, rig, jnp.moveaxis(observed, 1, 0)
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_the_strata_partition_the_image_and_the_band_holds_the_outline(scene):
     _, _, observations = scene
     obs = observations[0]
@@ -49,6 +50,7 @@ def test_the_strata_partition_the_image_and_the_band_holds_the_outline(scene):
     assert gap.min() > 8
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_every_pixel_is_sampled_with_unit_expected_weight(scene):
     """Horvitz-Thompson: over the draws, each pixel's weight averages 1 (so A^ and B^ are
     unbiased for every pose), and within one draw each stratum's weights sum to its size."""
@@ -165,6 +167,7 @@ def test_sampled_likelihood_gradient_matches_finite_differences(scene, getkey):
         assert numeric == pytest.approx(grad[index], rel=1e-4, abs=1e-6), index
 
 
+@pytest.mark.slow  # 9 s or more on 2 cores with an empty compilation cache (docs/testing.md, 2026-11-27)
 def test_bad_sampler_settings_and_observations_are_named(scene):
     motion, rig, observations = scene
     with pytest.raises(ValueError, match="samples must be"):

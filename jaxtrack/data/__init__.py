@@ -10,6 +10,8 @@ from ._gait import SubjectStyle as SubjectStyle
 from ._gait import SyntheticMotion as SyntheticMotion
 from ._gait import generate_motion as generate_motion
 from ._gait import random_subject as random_subject
+from ._gestures import SIGNALS as SIGNALS
+from ._gestures import signalling_motion as signalling_motion
 from ._rgb_scene import PART_COLOURS as PART_COLOURS
 from ._rgb_scene import PhotoSettings as PhotoSettings
 from ._rgb_scene import background_photo as background_photo

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._custom_types import Array, Float, Int
+from .._custom_types import Array, Float, Int, Shaped
 from ..body import BodyModel
 from ..camera import CameraRig, image_shape, pixel_grid
 from ..render import ProjectedCapsules, capsule_support, capsule_union, project_capsules, union_statistics
@@ -186,14 +186,33 @@ class SilhouetteLikelihood(AbstractLikelihood):
                 raise ValueError(f"window {self.window} must fit in the {height}x{width} image")
 
     def log_likelihood(
-        self, poses: Float[Array, "particles dofs"], observed: Float[Array, "views height width"]
+        self, poses: Float[Array, "particles dofs"], observed: Shaped[Array, "views height width"]
     ) -> Float[Array, " particles"]:
-        """Log-likelihood of each pose given one frame's observed silhouettes (values 0 or 1).
+        """Log-likelihood of each pose given one frame's observed silhouettes (values 0 or 1,
+        or integer / boolean masks, 0/255 included).
 
         Validate the observation first with ``check_silhouettes`` (outside jit): an empty
         observed silhouette makes the data term undefined.
         """
         return self.statistics(poses, observed)[0]
+
+    def _observation(self, observed):
+        """The observation as 0/1 masks, its shape checked against the rig (static, so also under
+        jit): integer or boolean masks (0/1 or 0/255) become ``observed > 0``; concrete float
+        masks must lie in [0, 1] (a 0/255 float mask, scored as is, would reward every pixel)."""
+        observed = jnp.asarray(observed)
+        height, width = image_shape(self.rig)
+        expected = (self.rig.num_views, height, width)
+        if observed.ndim != 3 or observed.shape != expected:
+            hint = " (transposed? height and width are swapped)" if observed.shape == (expected[0], width, height) else ""
+            raise ValueError(f"the observed silhouettes of a frame must be (views, height, width) = {expected}, "
+                             f"got {observed.shape}{hint}")
+        if observed.dtype == bool or jnp.issubdtype(observed.dtype, jnp.integer):
+            return observed > 0
+        if not isinstance(observed, jax.core.Tracer) and observed.size and float(jnp.max(jnp.abs(observed))) > 1.0:
+            raise ValueError(f"float silhouettes must hold values in [0, 1], found up to {float(jnp.max(observed)):g} "
+                             "(0/255 masks: pass them as uint8, or through check_silhouettes)")
+        return observed
 
     def statistics(self, poses, observed):
         """``(log_likelihood, per_view_cost, overflow_count)`` for a batch of poses.
@@ -201,7 +220,7 @@ class SilhouetteLikelihood(AbstractLikelihood):
         ``overflow_count`` is how many particle-views did not fit the window (0 when dense).
         """
         dtype = poses.dtype
-        observed = observed.astype(dtype)
+        observed = self._observation(observed).astype(dtype)
         caps = project_capsules(self.body, self.rig, poses)
         if self.window is None:
             area, overlap = silhouette_statistics_dense(caps, observed, self.edge_width.astype(dtype))

@@ -6,6 +6,13 @@ networks, and ``SpectralEmbedding`` (``fit_spectral``: LE, temporal LE or GLE wi
 networks, fitted in closed form), the manifold GLE-GbPF walks on. ``ManifoldKind`` and its
 registry name every kind that can be fitted (``manifold_kinds()``)."""
 
+from ._active_set import ActiveSetGPLVM as ActiveSetGPLVM
+from ._active_set import fit_active_set as fit_active_set
+from ._active_set import isomap as isomap
+from ._active_set import ivm_select as ivm_select
+from ._active_set import make_active_set_gplvm as make_active_set_gplvm
+from ._active_set import optimise_points as optimise_points
+from ._active_set import point_objective as point_objective
 from ._base import AbstractManifold as AbstractManifold
 from ._bc_gpdm import BCGPDM as BCGPDM
 from ._bc_gpdm import make_bc_gpdm as make_bc_gpdm

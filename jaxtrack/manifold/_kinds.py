@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._registries import Registry, check_name
+from ._active_set import make_active_set_gplvm
 from ._bc_gpdm import make_bc_gpdm
 from ._models import make_bc_gplvm, make_gpdm, make_gplvm
 from ._sparse import make_sparse_gplvm
@@ -137,6 +138,11 @@ def _sparse_gplvm(sequences, latent_dim, *, key=None, num_inducing=150, **option
     return make_sparse_gplvm(poses, latent_dim, num_inducing=min(int(num_inducing), poses.shape[0]), **options)
 
 
+def _active_set_gplvm(sequences, latent_dim, *, key=None, active=200, **options):
+    poses = np.concatenate(sequences)
+    return make_active_set_gplvm(poses, latent_dim, active=min(int(active), poses.shape[0]), **options)
+
+
 def _bc_gplvm_mlp(sequences, latent_dim, *, key=None, **options):
     if key is None:
         raise ValueError("a bc-gplvm-mlp needs a PRNG key to initialise its MLP (key=...)")
@@ -162,6 +168,8 @@ for _kind in (
                  trackable=False),
     ManifoldKind("sparse-gplvm", "sparse GPLVM with inducing points (004; at most one per frame)", _sparse_gplvm,
                  options={"num_inducing": 150}, trackable=False),
+    ManifoldKind("active-set-gplvm", "GPLVM on an IVM active set, the other points by 003 eq. 2 (003 Algorithm 1)",
+                 _active_set_gplvm, options={"active": 200, "init": "isomap"}, trackable=False),
 ):
     register_manifold_kind(_kind)
 del _kind

@@ -36,6 +36,9 @@ from ._serialise import AbstractSaveableManifold, register_manifold
 from ._spectral import fit_spectral
 
 
+MAX_TRAINING_MAGNITUDE = 1e6  # no joint angle (radians) or position (metres) comes near; squares of it stay finite
+
+
 def check_training_data(Y, latent_dim: int, name: str = "training poses") -> np.ndarray:
     """Validate (N, D) training data for a latent dimension; raises ``ValueError`` clearly."""
     Y = np.asarray(Y, np.float64)
@@ -45,6 +48,10 @@ def check_training_data(Y, latent_dim: int, name: str = "training poses") -> np.
     if not np.all(np.isfinite(Y)):
         bad = np.argwhere(~np.isfinite(Y))[0]
         raise ValueError(f"{name} contain a non-finite value at frame {bad[0]}, dimension {bad[1]}")
+    if Y.size and np.abs(Y).max() > MAX_TRAINING_MAGNITUDE:
+        bad = np.unravel_index(np.argmax(np.abs(Y)), Y.shape)
+        raise ValueError(f"{name} hold {Y[bad]:g} at frame {bad[0]}, dimension {bad[1]}: beyond "
+                         f"{MAX_TRAINING_MAGNITUDE:g} (joint angles in radians, positions in metres), so not a pose")
     if latent_dim < 1:
         raise ValueError(f"latent_dim must be at least 1, got {latent_dim}")
     if latent_dim > d:

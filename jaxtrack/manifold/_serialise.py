@@ -73,6 +73,11 @@ def save_model(path: str | os.PathLike, model, *, sequence_starts=None, extra: d
     name = type(model).__name__
     if not isinstance(model, AbstractSaveableManifold) or MANIFOLD_CLASSES.get(name) is not type(model):
         raise TypeError(f"cannot save a {name}; saveable models are {sorted(MANIFOLD_CLASSES)}")
+    bad = [jax.tree_util.keystr(where) for where, leaf in jax.tree_util.tree_leaves_with_path(model)
+           if eqx.is_inexact_array(leaf) and not np.all(np.isfinite(np.asarray(leaf)))]
+    if bad:
+        raise ModelFileError(f"{os.fspath(path)}: not saved: the model's {', '.join(bad[:4])} are not finite (a fit that "
+                             "diverged, or training data out of range)")
     n, d = model.data.shape
     q = model.latent_dim
     if sequence_starts is None:

@@ -1,0 +1,66 @@
+"""Paper 003 in its own setting: monocular 2-D upper-body tracking with the scaled prismatic
+model (SPM), an active-set GPLVM of SPM poses seen from the view sphere, NCC marker templates,
+003's latent Condensation and its two baselines (Condensation and multiple-hypothesis
+tracking on a shoulder-anchored arm chain). See docs/planar.md."""
+
+from ._arm_chain import ARM_STATE_DIM as ARM_STATE_DIM
+from ._arm_chain import ArmAnchor as ArmAnchor
+from ._arm_chain import arm_anchor as arm_anchor
+from ._arm_chain import arm_markers as arm_markers
+from ._arm_chain import arm_state_from_markers as arm_state_from_markers
+from ._arm_chain import arm_states_from_features as arm_states_from_features
+from ._arm_condensation import ArmCondensation as ArmCondensation
+from ._arm_condensation import make_arm_condensation as make_arm_condensation
+from ._base import AbstractTracker2D as AbstractTracker2D
+from ._base import TrackCarry as TrackCarry
+from ._base import Tracker2DRecipe as Tracker2DRecipe
+from ._base import get_tracker2d as get_tracker2d
+from ._base import register_tracker2d as register_tracker2d
+from ._base import start_tracking as start_tracking
+from ._base import track_frames as track_frames
+from ._base import tracker2d_names as tracker2d_names
+from ._latent_condensation import LatentCondensation as LatentCondensation
+from ._latent_condensation import make_latent_condensation as make_latent_condensation
+from ._latent_condensation import start_state as start_state
+from ._mht import MultipleHypothesisTracker as MultipleHypothesisTracker
+from ._mht import distinct_best as distinct_best
+from ._mht import gauss_newton as gauss_newton
+from ._mht import make_mht as make_mht
+from ._model import ArmAR as ArmAR
+from ._model import SPMModel as SPMModel
+from ._model import fit_arm_ar as fit_arm_ar
+from ._model import fit_spm_model as fit_spm_model
+from ._model import latent_step_sd as latent_step_sd
+from ._model import load_spm_model as load_spm_model
+from ._model import save_spm_model as save_spm_model
+from ._scenes import BACKGROUNDS as BACKGROUNDS
+from ._scenes import TEST_LIMBS as TEST_LIMBS
+from ._scenes import TEST_VIEWS as TEST_VIEWS
+from ._scenes import GestureVideo as GestureVideo
+from ._scenes import gesture_video as gesture_video
+from ._scenes import plain_wall as plain_wall
+from ._spm import NUM_LINKS as NUM_LINKS
+from ._spm import SPM_FEATURE_DIM as SPM_FEATURE_DIM
+from ._spm import SPM_LINKS as SPM_LINKS
+from ._spm import SPM_MARKERS as SPM_MARKERS
+from ._spm import SPM_REFERENCE_LENGTHS as SPM_REFERENCE_LENGTHS
+from ._spm import SPM_STATE_DIM as SPM_STATE_DIM
+from ._spm import markers_from_joints as markers_from_joints
+from ._spm import spine_to_neck as spine_to_neck
+from ._spm import spm_features as spm_features
+from ._spm import spm_forward as spm_forward
+from ._spm import spm_from_markers as spm_from_markers
+from ._spm import spm_state as spm_state
+from ._templates import MarkerTemplates as MarkerTemplates
+from ._templates import marker_templates as marker_templates
+from ._templates import patch_offsets as patch_offsets
+from ._templates import template_radius as template_radius
+from ._training import TRAINING_AZIMUTHS as TRAINING_AZIMUTHS
+from ._training import TRAINING_ELEVATIONS as TRAINING_ELEVATIONS
+from ._training import centred_joints as centred_joints
+from ._training import project_markers as project_markers
+from ._training import spm_training_set as spm_training_set
+from ._training import view_sphere_rig as view_sphere_rig
+from ._video import draw_markers as draw_markers
+from ._video import read_first_markers as read_first_markers
+from ._video import track_video as track_video

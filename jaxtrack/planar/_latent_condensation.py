@@ -1,0 +1,121 @@
+"""Paper 003's modified Condensation (Algorithm 2), registered as ``latentpf2d``.
+
+Particles live in the manifold's latent space (plus the pelvis's image position and the log
+scale, which 003 keeps in its state vector and a view-sphere manifold cannot know): resample
+by weight, predict by the random walk of 003 eq. 6 (``x += nu * N(0, I)``, ``nu`` learned from
+the training sequences' latent steps; the global part by ``translation_sd`` times the
+spine-to-neck height and ``scale_sd``), weight by the template likelihood (003 eq. 7) of the
+markers ``mu(x)`` gives, and estimate ``mu(E[x])``. 003 uses 200 particles.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._custom_types import Array, Float
+from ..filters import weighted_mean
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices
+from ._spm import spine_to_neck, spm_features, spm_forward, spm_from_markers, spm_state
+from ._templates import MarkerTemplates, marker_templates
+
+
+class LatentCondensation(AbstractTracker2D):
+    """Attributes:
+        predictor: the manifold's predictive map (latent -> SPM features).
+        start: (q + 3,) the first frame's [latent, pelvis u, v, log scale].
+        step_sd: (q + 3,) the random walk's standard deviations.
+        particles: N (static).
+    """
+
+    predictor: eqx.Module
+    start: Float[Array, " s"]
+    step_sd: Float[Array, " s"]
+    templates: MarkerTemplates
+    particles: int = eqx.field(static=True)
+    template_update: float = eqx.field(static=True, default=0.0)
+    estimate: str = eqx.field(static=True, default="latent-mean")
+
+    def markers(self, states: Float[Array, "n s"]) -> Float[Array, "n 9 2"]:
+        q = states.shape[-1] - 3
+        features, _variance = self.predictor(states[:, :q])
+        return spm_forward(spm_state(features, states[:, q : q + 2], states[:, q + 2]))
+
+    def init(self, key):
+        del key
+        states = jnp.broadcast_to(self.start, (self.particles, self.start.shape[0]))
+        return states, jnp.full(self.particles, -jnp.log(self.particles), self.start.dtype)
+
+    def step(self, state, templates, image, key):
+        states, log_weights = state
+        k_resample, k_walk = jax.random.split(key)
+        states = states[resample_indices(k_resample, log_weights)]
+        states = states + self.step_sd * jax.random.normal(k_walk, states.shape, states.dtype)
+        markers = self.markers(states)
+        log_weights = clean_log_weights(jax.vmap(lambda m: templates.log_likelihood(image, m))(markers))
+        if self.estimate == "marker-mean":
+            return (states, log_weights), weighted_mean(log_weights, markers)
+        return (states, log_weights), self.markers(weighted_mean(log_weights, states)[None])[0]
+
+
+def start_state(model, first_markers, *, candidates=(1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7)) -> np.ndarray:
+    """[latent, pelvis u, v, log scale] of the first frame's markers: the scale tried as the
+    spine seen at each ``candidates`` share of its length, each pose encoded by projection onto
+    the manifold (003 eq. 5's starting problem), the one whose decoded markers fit best kept."""
+    markers = jnp.asarray(first_markers, jnp.float64)
+    best, best_error = None, np.inf
+    spine = float(spine_to_neck(markers))
+    from ._spm import SPM_REFERENCE_LENGTHS
+
+    for share in candidates:
+        scale = spine / (SPM_REFERENCE_LENGTHS[0] * share)
+        state = spm_from_markers(markers, jnp.asarray(scale))
+        latent = model.manifold.encode(spm_features(state)[None].astype(model.manifold.data.dtype))[0]
+        candidate = jnp.concatenate([latent, state[:2], state[2:3]])
+        features, _ = model.manifold.predictor()(latent[None])
+        decoded = spm_forward(spm_state(features[0], state[:2], state[2]))
+        error = float(jnp.mean(jnp.linalg.norm(decoded - markers, axis=-1)))
+        if error < best_error:
+            best, best_error = candidate, error
+    return np.asarray(best)
+
+
+def make_latent_condensation(model, first_image, first_markers, *, particles: int = 200, translation_sd: float = 0.03,
+                             scale_sd: float = 0.01, diffusion: float = 1.0, likelihood_scale: float = 20.0,
+                             template_update: float = 0.0, estimate: str = "latent-mean") -> LatentCondensation:
+    """003's tracker on an ``SPMModel`` from the first frame (grey (H, W)) and its markers (9, 2).
+
+    Args:
+        particles: N (003: 200).
+        translation_sd: the pelvis's per-frame step, as a share of the spine-to-neck height.
+        scale_sd: the log scale's per-frame step.
+        diffusion: a factor on the learned ``nu``.
+        likelihood_scale: ``ln p = scale * mean NCC``.
+        template_update: the templates' update rate (0: fixed, as 003).
+        estimate: "latent-mean" (003: ``mu(E[x])``) or "marker-mean" (the weighted mean of the
+            particles' markers, which a latent space folded over several views cannot pull
+            between its folds).
+    """
+    if estimate not in ("latent-mean", "marker-mean"):
+        raise ValueError(f"estimate must be latent-mean or marker-mean, got {estimate!r}")
+    if int(particles) < 1:
+        raise ValueError(f"particles must be at least 1, got {particles}")
+    templates = marker_templates(first_image, first_markers, scale=likelihood_scale)
+    dtype = templates.templates.dtype
+    start = start_state(model, first_markers)
+    height = float(spine_to_neck(jnp.asarray(first_markers)))
+    step_sd = np.concatenate([diffusion * np.asarray(model.step_sd), [translation_sd * height] * 2, [scale_sd]])
+    predictor = jax.tree.map(lambda x: x.astype(dtype) if eqx.is_inexact_array(x) else x, model.manifold.predictor())
+    return LatentCondensation(predictor=predictor, start=jnp.asarray(start, dtype), step_sd=jnp.asarray(step_sd, dtype),
+                              templates=templates, particles=int(particles), template_update=float(template_update),
+                              estimate=estimate)
+
+
+register_tracker2d(Tracker2DRecipe(
+    "latentpf2d", "003's Condensation in the active-set GPLVM's latent space (Algorithm 2, random walk eq. 6)",
+    make_latent_condensation,
+    options={"particles": 200, "translation_sd": 0.03, "scale_sd": 0.01, "diffusion": 1.0, "likelihood_scale": 20.0,
+             "template_update": 0.0, "estimate": "latent-mean"},
+))
