@@ -180,7 +180,7 @@ def test_silhouette_validation(scene):
 
 
 def test_masks_of_any_convention_score_alike_and_a_transposed_frame_is_refused(scene):
-    motion, rig, seq, observed = scene
+    motion, rig, _seq, observed = scene
     likelihood = make_silhouette_likelihood(motion.body, rig, window=None)
     poses = jnp.asarray(motion.pose[:3], jnp.float64)
     frame = observed[:, 0]  # (views, H, W) in {0, 1}

@@ -35,7 +35,6 @@ from ._predictor import GPPredictor, full_gp_predictor
 from ._serialise import AbstractSaveableManifold, register_manifold
 from ._spectral import fit_spectral
 
-
 MAX_TRAINING_MAGNITUDE = 1e6  # no joint angle (radians) or position (metres) comes near; squares of it stay finite
 
 
