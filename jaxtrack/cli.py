@@ -505,6 +505,48 @@ def _estimate_sequence(sequence, poses, joints):
 _SCALE = 100.0
 
 
+MAX_SEED = 2**32 - 1
+MAX_IMAGE_SIDE = 4096  # pixels: a 4096x4096 scene already holds 16 M pixels a view and frame
+
+
+def _seed(text: str) -> int:
+    """A PRNG seed: a whole number from 0 to ``MAX_SEED`` (refused by argparse otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number from 0 to {MAX_SEED}, got {text}")
+    return value
+
+
+def _at_least(low: int, high: int | None = None):
+    """An argparse type: a whole number from ``low`` (to ``high``)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"expected a whole number from {low}" + (f" to {high}" if high else " up")
+                                             + f", got {text}")
+        return value
+
+    return parse
+
+
+def _fraction(text: str) -> float:
+    """An argparse type: a number from 0 to 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number from 0 to 1, got {text!r}") from None
+    if not 0.0 <= value <= 1.0:  # NaN fails both comparisons
+        raise argparse.ArgumentTypeError(f"expected a number from 0 to 1, got {text}")
+    return value
+
+
 def _resolution(text: str) -> tuple[int, int]:
     try:
         width, height = (int(v) for v in text.lower().split("x"))
@@ -606,10 +648,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="run the pipeline end to end on the embedded synthetic default")
     demo.add_argument("--out", default="jaxtrack_demo", help="output folder (default: %(default)s)")
-    demo.add_argument("--seed", type=int, default=0, help="PRNG seed (default: %(default)s)")
+    demo.add_argument("--seed", type=_seed, default=0, help="PRNG seed (default: %(default)s)")
     demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --show-likelihood)")
     demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --show-likelihood)")
-    demo.add_argument("--runs", type=int, default=2, help="runs per method (default: %(default)s)")
+    demo.add_argument("--runs", type=_at_least(1), default=2, help="runs per method (default: %(default)s)")
     demo.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
                       help="the trackers' likelihood times the ground plane's prior (--no-ground-prior: the silhouettes alone) "
                            "(default: on)")
@@ -632,7 +674,7 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--asf", help="skeleton of an AMC file (default: the only .asf beside it)")
     convert.add_argument("--source-fps", type=float, help="frame rate of the source (required for AMC; CMU: 120)")
     convert.add_argument("--mapping", help="JSON file: HumanEva joint -> source joint name(s) (CMU and Bandai are built in)")
-    convert.add_argument("--seed", type=int, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
+    convert.add_argument("--seed", type=_seed, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
     convert.set_defaults(run=_convert)
 
     scene = sub.add_parser("scene", help="render a sequence's motion into synthetic multi-view silhouettes (a test sequence)")
@@ -640,12 +682,12 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument("out", nargs="?", help="output sequence file (.npz) with cameras and silhouettes (not with --video)")
     scene.add_argument("--start", type=int, default=0, help="first frame to keep (default: %(default)s)")
     scene.add_argument("--frames", type=int, help="frames to keep (default: to the end)")
-    scene.add_argument("--width", type=int, default=80, help="image width in pixels (default: %(default)s)")
-    scene.add_argument("--height", type=int, default=60, help="image height in pixels (default: %(default)s)")
-    scene.add_argument("--views", type=int, default=4, help="cameras around the capture area (default: %(default)s)")
+    scene.add_argument("--width", type=_at_least(8, MAX_IMAGE_SIDE), default=80, help="image width in pixels (default: %(default)s)")
+    scene.add_argument("--height", type=_at_least(8, MAX_IMAGE_SIDE), default=60, help="image height in pixels (default: %(default)s)")
+    scene.add_argument("--views", type=_at_least(1, 64), default=4, help="cameras around the capture area (default: %(default)s)")
     scene.add_argument("--clean", action="store_true", help="no background-subtraction noise")
     scene.add_argument("--no-centre", action="store_true", help="keep the recorded floor position (default: centre the path)")
-    scene.add_argument("--seed", type=int, default=0, help="PRNG seed of the silhouette noise (default: %(default)s)")
+    scene.add_argument("--seed", type=_seed, default=0, help="PRNG seed of the silhouette noise (default: %(default)s)")
     scene.add_argument("--keypoints", action="store_true",
                        help="also write synthetic 2-D keypoint detections (keypoints2d): the true joints projected, with noise")
     scene.add_argument("--keypoint-noise", type=float, default=5.0, metavar="PX",
@@ -699,7 +741,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--manifold-option", action="append", metavar="KEY=VALUE",
                      help="an option of the manifold kind's maker (e.g. num_inducing=100 for sparse-gplvm)")
     fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")
-    fit.add_argument("--seed", type=int, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
+    fit.add_argument("--seed", type=_seed, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
     fit.add_argument("--latent-dim", type=int, help="latent dimension (default: the kind's own: 2 for the GP models, 3 for gle, tle, le)")
     fit.add_argument("--steps", type=int, default=300,
                      help="L-BFGS iterations at most (default: %(default)s, as jaxtrack experiment's --fit-steps)")
@@ -717,7 +759,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
     experiment.add_argument("--plugin", action="append", default=[],
                             help="a module (dotted name or .py file) to import first; it may register trackers")
-    experiment.add_argument("--runs", type=int, default=5, help="runs per method (default: %(default)s)")
+    experiment.add_argument("--runs", type=_at_least(1), default=5, help="runs per method (default: %(default)s)")
     experiment.add_argument("--batch-runs", action="store_true",
                             help="track each method's runs in one compiled call (vmapped over the runs' keys)")
     experiment.add_argument("--latent-dim", type=int,
@@ -729,7 +771,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
                                  "measured before 2026-11-26)")
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
-    experiment.add_argument("--seed", type=int, default=0)
+    experiment.add_argument("--seed", type=_seed, default=0)
     experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
                             help="the manifold of every manifold tracker of its family (GP: "
                                  f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "
@@ -772,9 +814,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
     track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
-    track.add_argument("--seed", type=int, default=0)
+    track.add_argument("--seed", type=_seed, default=0)
     _spec_arguments(track, "the tracker", "the test sequence")
-    track.add_argument("--max-degenerate", type=float, default=0.0,
+    track.add_argument("--max-degenerate", type=_fraction, default=0.0,
                        help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
     track.add_argument("--chunk-frames", type=int, default=100,
@@ -795,9 +837,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="latentpf2d: 003's Condensation in the latent space (200 particles); condensation2d: "
                               "Condensation on a shoulder-anchored arm chain with an AR(2) model (1000 particles); mht2d: "
                               "multiple-hypothesis tracking on that chain (10 modes) (default: %(default)s)")
-    track2d.add_argument("--frames", type=int, help="track the first FRAMES frames (default: all)")
-    track2d.add_argument("--seed", type=int, default=0)
-    track2d.add_argument("--chunk-frames", type=int, default=64,
+    track2d.add_argument("--frames", type=_at_least(2), help="track the first FRAMES frames (default: all)")
+    track2d.add_argument("--seed", type=_seed, default=0)
+    track2d.add_argument("--chunk-frames", type=_at_least(1), default=64,
                          help="frames read and tracked at a time; the tracks so far are written after each (default: %(default)s)")
     track2d.add_argument("--fps", type=float, default=30.0, help="the overlay video's frame rate (default: %(default)s)")
     track2d.add_argument("--no-overlay", action="store_true", help="skip the overlay video (OUT_overlay.mp4)")

@@ -1,3 +1,4 @@
+import os
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -252,3 +253,36 @@ def test_a_second_call_loads_its_compiled_trackers_from_the_cache(tmp_path):
     for path in [p for p in cache.rglob("*") if p.is_file()]:
         path.unlink()
     assert run("--no-compile-cache") == [] and run(env_cache="off") == []
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["demo", "--seed", str(10**23)], "a seed is a whole number from 0 to 4294967295"),
+    (["demo", "--runs", "0"], "expected a whole number from 1 up, got 0"),
+    (["scene", "in.npz", "out.npz", "--views", "0"], "expected a whole number from 1 to 64, got 0"),
+    (["scene", "in.npz", "out.npz", "--width", "100000"], "expected a whole number from 8 to 4096, got 100000"),
+    (["track", "t.npz", "--model", "m.eqx", "--validation", "v.npz", "--out", "o.npz", "--max-degenerate", "nan"],
+     "expected a number from 0 to 1, got nan"),
+    (["track", "t.npz", "--model", "m.eqx", "--validation", "v.npz", "--out", "o.npz", "--max-degenerate", "-1"],
+     "expected a number from 0 to 1, got -1"),
+])
+def test_absurd_arguments_are_refused_before_any_work(argv, words, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    assert words in capsys.readouterr().err
+
+
+def test_outputs_follow_the_umask_and_unwritable_folders_are_refused_first(tmp_path):
+    import stat
+
+    from jaxtrack.io import OutputPathError, atomic_write, check_output
+
+    old = os.umask(0o027)
+    try:
+        with atomic_write(tmp_path / "a.bin") as handle:
+            handle.write(b"x")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(os.stat(tmp_path / "a.bin").st_mode) == 0o640
+    with pytest.raises(OutputPathError, match="cannot write files in the output folder"):
+        check_output("/proc/jaxtrack-test.npz")

@@ -67,7 +67,18 @@ def check_folder(folder: str | os.PathLike, *, create: bool = True) -> str:
             raise OutputPathError(f"{folder}: cannot create the output folder ({err.strerror or err})") from err
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputPathError(f"{folder}: the output folder is not writable")
+    try:  # what access() says is not always what the file system does (/proc, read-only mounts)
+        probe = tempfile.NamedTemporaryFile(dir=folder, prefix=".jaxtrack-write-test.", delete=True)
+        probe.close()
+    except OSError as err:
+        raise OutputPathError(f"{folder}: cannot write files in the output folder ({err.strerror or err})") from err
     return folder
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 @contextlib.contextmanager
@@ -80,6 +91,7 @@ def atomic_write(path: str | os.PathLike) -> Iterator:
     try:
         with handle:
             yield handle
+        os.chmod(handle.name, 0o666 & ~_umask())  # as open() would make it (the temporary file is 0600)
         os.replace(handle.name, path)
     except BaseException:
         with contextlib.suppress(OSError):
