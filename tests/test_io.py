@@ -49,6 +49,9 @@ def test_file_written_with_numpy_alone_loads(tmp_path):
         ({"parents": np.array([-1, 2, 1] + list(range(3, 15)))}, r"joint 1's chain of parents never reaches the root \(a cycle\)"),
         ({"skeleton_offsets": np.zeros((15, 3))}, r"key 'skeleton_offsets': joint\(s\) \[1, 2, 3, 4, 5\] sit on their parent"),
         ({"joint_names": np.arange(15)}, "key 'joint_names': must be a 1-D array of strings"),
+        ({"skeleton_offsets": np.full((15, 3), 1e200)}, "key 'skeleton_offsets': joint 0 sits 1e\\+200 m from its parent"),
+        ({"capsule_radii": np.full(15, 5e4)}, "key 'capsule_radii': a radius of 5e\\+04 m"),
+        ({"camera_t": np.full((4, 3), 1e300)}, "key 'camera_t': camera 0 sits 1e\\+300 m from the origin"),
         ({"camera_K": None}, "key 'camera_K': is required with the other camera keys"),
     ],
 )

@@ -269,6 +269,11 @@ def _standard_layout() -> tuple[str, ...]:
     return tuple(humaneva_skeleton().pose_layout)
 
 
+MAX_BONE = 1.5  # metres: the longest human bone (the femur) is about 0.5 m
+MAX_RADIUS = 1.0  # metres: a capsule radius
+MAX_CAMERA_DISTANCE = 1000.0  # metres from the world's origin
+
+
 def _standard_pose_order(source, pose: np.ndarray, layout: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pose columns matched to the HumanEva pose layout by name (reordered when the file names
     the same entries in another order); a layout naming other entries is refused."""
@@ -329,6 +334,7 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
         out["subject"] = str(subject).strip()
 
     lengths: dict[str, tuple[int, str]] = {}  # dimension name -> (size, key that set it)
+    # Plausibility limits (metres): a file beyond them holds another unit or corrupt numbers.
 
     def agree(dim, size, key):
         if dim == "frames" and size < 1:
@@ -367,14 +373,21 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     if "skeleton_offsets" in f:
         offsets = _as_float(source, "skeleton_offsets", f["skeleton_offsets"], 2, (3,))
         agree("joints", offsets.shape[0], "skeleton_offsets")
-        zero = np.flatnonzero(np.linalg.norm(offsets[1:], axis=1) < 1e-6) + 1  # the root's offset may be zero
+        zero = np.flatnonzero(np.abs(offsets[1:]).max(axis=1) < 1e-6) + 1  # the root's offset may be zero
         if zero.size:
             _fail(source, "skeleton_offsets", f"joint(s) {zero[:5].tolist()} sit on their parent (zero offset): a bone needs a length")
+        reach = np.abs(offsets).max(axis=1)  # components, not norms: no overflow on absurd values
+        if reach.max() > MAX_BONE:
+            _fail(source, "skeleton_offsets", f"joint {int(np.argmax(reach))} sits {reach.max():.3g} m from its parent along an "
+                                              f"axis: no human bone is longer than {MAX_BONE:g} m (millimetres stored as metres?)")
         out["skeleton_offsets"] = offsets
     if "capsule_radii" in f:
         radii = _as_float(source, "capsule_radii", f["capsule_radii"], 1)
         if np.any(radii <= 0):
             _fail(source, "capsule_radii", "radii must be positive")
+        if np.any(radii > MAX_RADIUS):
+            _fail(source, "capsule_radii", f"a radius of {radii.max():.3g} m: no limb is thicker than {2 * MAX_RADIUS:g} m "
+                                           "(millimetres stored as metres?)")
         out["capsule_radii"] = radii
     if "pose" in f:
         pose = _as_float(source, "pose", f["pose"], 2)
@@ -408,6 +421,11 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
                 _fail(source, "camera_R", f"camera {c} is not a rotation matrix")
             if K[c, 0, 0] <= 0 or K[c, 1, 1] <= 0 or not np.allclose(K[c, 2], [0, 0, 1]):
                 _fail(source, "camera_K", f"camera {c} must have positive focal lengths and last row (0, 0, 1)")
+        far = np.abs(t).max(axis=1)  # |camera centre| = |t| for a rotation R; components: no overflow
+        if np.any(far > MAX_CAMERA_DISTANCE):
+            c = int(np.argmax(far))
+            _fail(source, "camera_t", f"camera {c} sits {far[c]:.3g} m from the origin along an axis: a capture volume is not "
+                                      f"larger than {MAX_CAMERA_DISTANCE:g} m (millimetres stored as metres?)")
         out.update(camera_K=K, camera_R=R, camera_t=t, camera_dist=dist, image_size=size.astype(np.int64))
 
     for key, ndim in (("silhouettes", 4), ("images", 5)):
