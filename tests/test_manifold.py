@@ -261,6 +261,15 @@ def test_save_load_round_trip_and_errors(walk_jog, tmp_path):
     v1 = {k: v for k, v in fields.items() if k not in ("payload_bytes", "payload_sha256")}
     (tmp_path / "v1.eqx").write_bytes((json.dumps({**v1, "version": 1}) + "\n").encode() + good[header_end:])
     assert type(load_model(tmp_path / "v1.eqx")[0]).__name__ == "BCGPLVM"
+    # What a version-1 header cannot guard by a checksum is checked on reading: sequence_starts, a
+    # header that is not a JSON object.
+    (tmp_path / "v1s.eqx").write_bytes((json.dumps({**v1, "version": 1, "sequence_starts": [0, 5, 3]}) + "\n").encode()
+                                       + good[header_end:])
+    with pytest.raises(ModelFileError, match="sequence_starts must rise from 0"):
+        load_model(tmp_path / "v1s.eqx")
+    (tmp_path / "list.eqx").write_bytes(b"[1, 2]\n" + good[header_end:])
+    with pytest.raises(ModelFileError, match="its header is a JSON list, not an object"):
+        load_model(tmp_path / "list.eqx")
 
 
 @pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes

@@ -113,7 +113,10 @@ def read_header(path: str | os.PathLike) -> dict:
         header = json.loads(line)
     except (json.JSONDecodeError, UnicodeDecodeError):
         raise ModelFileError(f"{os.fspath(path)}: not a jaxtrack model file (no JSON header line)") from None
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
+    if not isinstance(header, dict):
+        raise ModelFileError(f"{os.fspath(path)}: not a jaxtrack model file (its header is a JSON {type(header).__name__}, "
+                             "not an object)")
+    if header.get("format") != FORMAT:
         raise ModelFileError(f"{os.fspath(path)}: not a jaxtrack model file (format {header.get('format')!r})")
     return header
 
@@ -162,4 +165,13 @@ def load_model(path: str | os.PathLike, expected_class: str | None = None):
     except Exception as err:  # any failure to rebuild the recorded model is the file's fault
         raise ModelFileError(f"{where}: the header does not describe the arrays that follow it "
                              f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''})") from err
+    bad = [jax.tree_util.keystr(at) for at, leaf in jax.tree_util.tree_leaves_with_path(model)
+           if eqx.is_inexact_array(leaf) and not np.all(np.isfinite(np.asarray(leaf)))]
+    if bad:  # an edited file of a version without checksums, or one written before save_model refused them
+        raise ModelFileError(f"{where}: the model's {', '.join(bad[:4])} are not finite")
+    frames = header.get("frames")
+    starts = header.get("sequence_starts", [0, frames])
+    if (not isinstance(starts, list) or len(starts) < 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in starts)
+            or starts[0] != 0 or starts[-1] != frames or any(b <= a for a, b in zip(starts, starts[1:]))):
+        raise ModelFileError(f"{where}: sequence_starts must rise from 0 to the {frames} frames, got {starts!r}")
     return model, header
