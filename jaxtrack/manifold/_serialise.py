@@ -13,6 +13,7 @@ from __future__ import annotations
 import abc
 import hashlib
 import io
+import itertools
 import json
 import os
 
@@ -172,6 +173,6 @@ def load_model(path: str | os.PathLike, expected_class: str | None = None):
     frames = header.get("frames")
     starts = header.get("sequence_starts", [0, frames])
     if (not isinstance(starts, list) or len(starts) < 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in starts)
-            or starts[0] != 0 or starts[-1] != frames or any(b <= a for a, b in zip(starts, starts[1:]))):
+            or starts[0] != 0 or starts[-1] != frames or any(b <= a for a, b in itertools.pairwise(starts))):
         raise ModelFileError(f"{where}: sequence_starts must rise from 0 to the {frames} frames, got {starts!r}")
     return model, header
