@@ -75,6 +75,11 @@ def test_a_skeleton_that_contradicts_its_joints_is_refused(other_subject_scene):
     with pytest.raises(SequenceFileError, match=r"bad.npz: key 'skeleton_offsets' contradicts 'joints3d': the bone lhip -> lknee"):
         subject_body(bad, "bad.npz", key=jax.random.key(0))
     assert subject_body(bad, "bad.npz", key=jax.random.key(0), choice="joints").source == "fitted to joints"
+    # A pose that does not put the joints where the file says (integer-truncated angles).
+    truncated = full.replace(pose=np.trunc(np.asarray(full.pose)))
+    with pytest.raises(SequenceFileError, match=r"trunc.npz: key 'pose' contradicts 'joints3d': .* mm from the file's joints"):
+        subject_body(truncated, "trunc.npz", key=jax.random.key(0))
+    assert subject_body(full, "full.npz", key=jax.random.key(0)).source == "file"
 
 
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)

@@ -54,6 +54,7 @@ the first frames' images: ``likelihood.calibrate_body``)."""
 # A file's skeleton contradicts its joints when a limb's length differs from the joints' median
 # segment length by more than both of these (the IK residual of real motion capture is 5-30 mm).
 CONTRADICTION_M = 0.03
+POSE_CONTRADICTION_MM = 50.0  # a file's pose and joints disagree: more than this, mean over joints and frames
 CONTRADICTION_FRACTION = 0.10
 # The IK residual (mean over frames, per joint) above which a ground truth is flagged as one the
 # skeleton cannot reach: twice the worst joint of a clean CMU or Bandai conversion (about 25 mm).
@@ -157,6 +158,21 @@ def check_offsets_match_joints(offsets, joints, name: str) -> None:
                     f"keys, or pass body='joints' to fit the skeleton to the joints")
 
 
+def check_pose_matches_joints(resolved: SubjectBody, name: str) -> None:
+    """Refuse a file whose ``pose`` on its own skeleton puts the joints more than
+    ``POSE_CONTRADICTION_MM`` (mean over joints and frames) from its ``joints3d``: one of the two
+    is not the motion (a truncated or rescaled pose, another take's joints)."""
+    if resolved.residual_mm is None or resolved.source != "file":
+        return
+    per_frame = resolved.residual_mm.mean(axis=1)
+    if float(per_frame.mean()) > POSE_CONTRADICTION_MM:
+        worst = int(np.argmax(per_frame))
+        raise SequenceFileError(
+            f"{name}: key 'pose' contradicts 'joints3d': on the file's skeleton the pose puts the joints "
+            f"{float(per_frame.mean()):.0f} mm from the file's joints on average (frame {worst}: {per_frame[worst]:.0f} mm); "
+            "drop one of the two keys, or pass body='joints' to solve the poses from the joints")
+
+
 def subject_body(sequence: Sequence, name: str, *, key, choice: str = "auto", donors=(), dtype=jnp.float32) -> SubjectBody:
     """Resolve a sequence's body and poses (see the module docstring).
 
@@ -187,7 +203,9 @@ def subject_body(sequence: Sequence, name: str, *, key, choice: str = "auto", do
         if sequence.skeleton_offsets is not None and choice == "auto":
             if joints is not None:
                 check_offsets_match_joints(sequence.skeleton_offsets, joints, name)
-            return _solved(_with_offsets(default, sequence.skeleton_offsets), sequence, joints, key, "file", "", dtype, fit=False)
+            resolved = _solved(_with_offsets(default, sequence.skeleton_offsets), sequence, joints, key, "file", "", dtype, fit=False)
+            check_pose_matches_joints(resolved, name)
+            return resolved
         if joints is not None:
             return _solved(default, sequence, joints, key, "fitted to joints", "", dtype, fit=True)
         for donor_name, donor, subject in donors:
