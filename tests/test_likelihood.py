@@ -177,6 +177,8 @@ def test_silhouette_validation(scene):
         make_silhouette_likelihood(motion.body, rig, edge_width=0.0)
     with pytest.raises(ValueError, match="must fit"):
         make_silhouette_likelihood(motion.body, rig, window=(31, 10))
+    with pytest.raises(ValueError, match=r"silhouettes= must be \(views, height, width\)"):
+        make_silhouette_likelihood(motion.body, rig, silhouettes=np.ones((5, 30)))
 
 
 def test_masks_of_any_convention_score_alike_and_a_transposed_frame_is_refused(scene):

@@ -342,3 +342,14 @@ def test_every_paper_tracker_tracking_blind_leaks_no_nans():
                 if jnp.issubdtype(jnp.asarray(leaf).dtype, jnp.floating):
                     assert not np.any(np.isnan(np.asarray(leaf))), label
             assert np.all(np.isfinite(np.asarray(info.estimate))), label
+
+
+def test_prepare_test_refuses_a_frame_count_that_is_not_one_or_more():
+    from jaxtrack.tracking import prepare_test
+
+    from helpers import small_scene
+
+    scene = small_scene()[2]
+    for frames in (-3, 0, True):  # a float is refused by the type hint itself (beartype, in the tests)
+        with pytest.raises(ValueError, match="frames must be a whole number of frames, 1 or more"):
+            prepare_test(scene, "walk.npz", key=jax.random.key(0), frames=frames)

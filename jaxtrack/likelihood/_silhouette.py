@@ -323,7 +323,8 @@ def make_silhouette_likelihood(
     if isinstance(window, str):
         if window != "auto":
             raise ValueError(f"window must be (rows, cols), None or 'auto', got {window!r}")
-        window = None if silhouettes is None else suggest_window(silhouettes, edge_width=edge_width)
+        window = None if silhouettes is None else suggest_window(check_silhouettes(silhouettes, rig, name="silhouettes="),
+                                                                 edge_width=edge_width)
     elif window is not None:
         window = (int(window[0]), int(window[1]))
     dtype = rig.K.dtype

@@ -378,7 +378,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if height is not None:
         check_height(height)
     total = sequence.num_frames
-    frames = total if frames is None else min(frames, total)
+    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1):
+        raise ValueError(f"{name}: frames must be a whole number of frames, 1 or more (None: all {total}), got {frames!r}")
+    frames = total if frames is None else min(int(frames), total)
     if resolution is not None:
         sequence = sequence.resized(*resolution)
     rig = sequence.rig(dtype=TRACKING_DTYPE)
