@@ -162,8 +162,7 @@ def _fit(args) -> int:
 
     from .body import GLOBAL_DOFS
     from .io import check_output, load_sequence
-    from .manifold import get_manifold_kind, save_model
-    from .manifold._models import check_training_data
+    from .manifold import check_training_data, get_manifold_kind, save_model
     from .tracking import fit_manifold
 
     args.out = check_output(args.out, args.motion)

@@ -53,6 +53,7 @@ from ._models import GPLVM as GPLVM
 from ._models import KernelBackConstraint as KernelBackConstraint
 from ._models import MLPBackConstraint as MLPBackConstraint
 from ._models import PCAModel as PCAModel
+from ._models import check_training_data as check_training_data
 from ._models import fit_pca as fit_pca
 from ._models import make_bc_gplvm as make_bc_gplvm
 from ._models import make_gpdm as make_gpdm
