@@ -52,6 +52,26 @@ def run(method, model, video, key, options=None):
     return markers, errors, arm_errors, arm_errors < TRACKED_SHARE * size, seconds
 
 
+def manifold_floor(model, video, every=5, candidates=(1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7)):
+    """The best the latent tracker can do on this manifold: each true frame's markers encoded
+    as ``planar.start_state`` does (the pose projected onto the manifold, the scale searched; all
+    frames in one batched ``encode``) and decoded; mean errors (px) over 9 markers and over the
+    arm markers."""
+    markers = jnp.asarray(video.markers[::every], jnp.float64)  # (T, 9, 2)
+    spine = planar.spine_to_neck(markers)  # (T,)
+    shares = jnp.asarray(candidates, jnp.float64)
+    scales = spine[:, None] / (planar.SPM_REFERENCE_LENGTHS[0] * shares[None])  # (T, K)
+    states = jax.vmap(lambda m, s: jax.vmap(lambda x: planar.spm_from_markers(m, x))(s))(markers, scales)  # (T, K, 19)
+    flat = states.reshape(-1, planar.SPM_STATE_DIM)
+    latent = model.manifold.encode(planar.spm_features(flat))
+    features, _ = model.manifold.predictor()(latent)
+    decoded = planar.spm_forward(planar.spm_state(features, flat[:, :2], flat[:, 2])).reshape(states.shape[:2] + (9, 2))
+    distance = jnp.linalg.norm(decoded - markers[:, None], axis=-1)  # (T, K, 9)
+    best = jnp.argmin(distance.mean(-1), axis=1)
+    chosen = np.asarray(jnp.take_along_axis(distance, best[:, None, None], axis=1)[:, 0])  # (T, 9)
+    return float(chosen.mean()), float(chosen[:, ARM_MARKERS].mean())
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=5)
@@ -64,6 +84,9 @@ def main():
     parser.add_argument("--every", type=int, default=3, help="training frames kept (every n-th)")
     parser.add_argument("--option", action="append", default=[], help="METHOD:KEY=VALUE, a tracker option")
     parser.add_argument("--background", choices=planar.BACKGROUNDS, default="photo")
+    parser.add_argument("--transition", type=float, nargs=2, default=(0.4, 1.2), metavar=("SHORTEST", "LONGEST"),
+                        help="the test takes' seconds between key postures (training keeps 0.4 1.2)")
+    parser.add_argument("--floor", action="store_true", help="also print the manifold's encode-decode error of each video")
     parser.add_argument("--json")
     parser.add_argument("--plot")
     parser.add_argument("--overlay")
@@ -86,8 +109,14 @@ def main():
     results, curves = {}, {}
     for v in args.views:
         view = planar.TEST_VIEWS[v]
-        video = planar.gesture_video(jax.random.key(100 + v), view=view, frames=args.frames, background=args.background)
-        name = f"{args.background}, az {view[0]:g} el {view[1]:g}"
+        video = planar.gesture_video(jax.random.key(100 + v), view=view, frames=args.frames, background=args.background,
+                                     transition=tuple(args.transition))
+        if args.floor:
+            floor, floor_arms = manifold_floor(model, video)
+            print(f"{args.background}, az {view[0]:g} el {view[1]:g}: the manifold's floor (true markers encoded and decoded, "
+                  f"every 5th frame): {floor:.1f} px, arms {floor_arms:.1f} px")
+        slow = "" if tuple(args.transition) == (0.4, 1.2) else f", {args.transition[0]:g}-{args.transition[1]:g} s"
+        name = f"{args.background}{slow}, az {view[0]:g} el {view[1]:g}"
         for method in args.methods:
             rows = []
             for r in range(args.runs):

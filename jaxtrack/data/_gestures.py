@@ -2,7 +2,7 @@
 marshalling signals 003 trains on) made with the library's skeleton.
 
 A gesture take is a chain of key postures of both arms, held briefly and joined by smooth
-(half-cosine) transitions of 0.4-1.2 s. Each key posture is either one of the named signals
+(half-cosine) transitions of 0.4-1.2 s (``transition``). Each key posture is either one of the named signals
 ``SIGNALS`` or, with probability ``random_share``, a random arm posture within the joints'
 ranges; the person stands still (legs straight, a slight sway of the spine and head).
 """
@@ -36,7 +36,7 @@ _RANDOM_HIGH = np.array([2.4, 2.5, 2.2, 2.4, 2.5, 2.2])
 
 
 def signalling_motion(key, *, num_frames: int = 300, fps: float = 30.0, random_share: float = 0.3,
-                      limb_lengths=None, facing: float = 0.0) -> SyntheticMotion:
+                      limb_lengths=None, facing: float = 0.0, transition=(0.4, 1.2)) -> SyntheticMotion:
     """A take of signalling gestures (module docstring).
 
     Args:
@@ -46,10 +46,14 @@ def signalling_motion(key, *, num_frames: int = 300, fps: float = 30.0, random_s
         random_share: the probability that a key posture is random rather than a named signal.
         limb_lengths: the subject's limb lengths (``humaneva_body``'s keys), default body if None.
         facing: the direction the person faces, radians about the vertical.
+        transition: the shortest and longest time from one key posture to the next, seconds.
 
     Returns:
         A ``SyntheticMotion`` (gait ``"signals"``) with poses and joints (metres, Z up).
     """
+    low, high = (float(v) for v in transition)
+    if not 0 < low <= high:
+        raise ValueError(f"transition must be (shortest, longest) seconds with 0 < shortest <= longest, got {transition}")
     if num_frames < 2:
         raise ValueError(f"num_frames must be at least 2, got {num_frames}")
     body = humaneva_body(limb_lengths)
@@ -63,7 +67,7 @@ def signalling_motion(key, *, num_frames: int = 300, fps: float = 30.0, random_s
         else:
             posture = np.asarray(SIGNALS[names[rng.integers(1, len(names))]])
         hold = rng.uniform(0.1, 0.4)
-        times += [times[-1] + rng.uniform(0.4, 1.2), None]
+        times += [times[-1] + rng.uniform(low, high), None]
         times[-1] = times[-2] + hold
         postures += [posture, posture]
     times, postures = np.asarray(times), np.stack(postures)

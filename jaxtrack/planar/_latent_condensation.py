@@ -18,7 +18,7 @@ import numpy as np
 from .._custom_types import Array, Float
 from ..filters import weighted_mean
 from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices
-from ._spm import spine_to_neck, spm_features, spm_forward, spm_from_markers, spm_state
+from ._spm import SPM_REFERENCE_LENGTHS, spine_to_neck, spm_features, spm_forward, spm_from_markers, spm_state
 from ._templates import MarkerTemplates, marker_templates
 
 
@@ -63,23 +63,17 @@ class LatentCondensation(AbstractTracker2D):
 def start_state(model, first_markers, *, candidates=(1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7)) -> np.ndarray:
     """[latent, pelvis u, v, log scale] of the first frame's markers: the scale tried as the
     spine seen at each ``candidates`` share of its length, each pose encoded by projection onto
-    the manifold (003 eq. 5's starting problem), the one whose decoded markers fit best kept."""
+    the manifold (one batched ``encode``), the one whose decoded markers fit best kept."""
     markers = jnp.asarray(first_markers, jnp.float64)
-    best, best_error = None, np.inf
     spine = float(spine_to_neck(markers))
-    from ._spm import SPM_REFERENCE_LENGTHS
-
-    for share in candidates:
-        scale = spine / (SPM_REFERENCE_LENGTHS[0] * share)
-        state = spm_from_markers(markers, jnp.asarray(scale))
-        latent = model.manifold.encode(spm_features(state)[None].astype(model.manifold.data.dtype))[0]
-        candidate = jnp.concatenate([latent, state[:2], state[2:3]])
-        features, _ = model.manifold.predictor()(latent[None])
-        decoded = spm_forward(spm_state(features[0], state[:2], state[2]))
-        error = float(jnp.mean(jnp.linalg.norm(decoded - markers, axis=-1)))
-        if error < best_error:
-            best, best_error = candidate, error
-    return np.asarray(best)
+    scales = jnp.asarray([spine / (SPM_REFERENCE_LENGTHS[0] * share) for share in candidates], jnp.float64)
+    states = jax.vmap(lambda scale: spm_from_markers(markers, scale))(scales)  # (K, 19)
+    latent = model.manifold.encode(spm_features(states).astype(model.manifold.data.dtype))  # (K, q)
+    features, _ = model.manifold.predictor()(latent)
+    decoded = spm_forward(spm_state(features, states[:, :2], states[:, 2]))
+    errors = jnp.mean(jnp.linalg.norm(decoded - markers[None], axis=-1), axis=-1)
+    best = int(jnp.argmin(errors))
+    return np.asarray(jnp.concatenate([latent[best], states[best, :2], states[best, 2:3]]))
 
 
 def make_latent_condensation(model, first_image, first_markers, *, particles: int = 200, translation_sd: float = 0.03,

@@ -54,10 +54,11 @@ BACKGROUNDS = ("photo", "wall")
 
 def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30.0, width: int = 320, height: int = 240,
                   distance: float = 2.2, target_height: float = 1.45, limb_lengths=TEST_LIMBS, background: str = "photo",
-                  chunk: int = 8) -> GestureVideo:
+                  transition=(0.4, 1.2), chunk: int = 8) -> GestureVideo:
     """A monocular video of ``signalling_motion`` (module docstring), over a photograph
     (``background="photo"``: ``data.background_photo``, busy, with a face) or a plain wall
-    (``"wall"``, ``plain_wall``).
+    (``"wall"``, ``plain_wall``); ``transition``: ``signalling_motion``'s (seconds between key
+    postures).
 
     Raises:
         ValueError: if the view is one of the training views (it would not test generalisation).
@@ -69,7 +70,8 @@ def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30
         raise ValueError(f"view {view} is a training view of the view sphere; choose another")
     if background not in BACKGROUNDS:
         raise ValueError(f"background must be one of {BACKGROUNDS}, got {background!r}")
-    motion = signalling_motion(jax.random.fold_in(key, 0), num_frames=frames, fps=fps, limb_lengths=limb_lengths)
+    motion = signalling_motion(jax.random.fold_in(key, 0), num_frames=frames, fps=fps, limb_lengths=limb_lengths,
+                               transition=transition)
     rig = view_sphere_rig((azimuth,), (elevation,), distance=distance, target_height=target_height, width=width,
                           height=height, dtype=np.float32)
     solid = SolidBody(motion.body.skeleton)
