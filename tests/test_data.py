@@ -40,6 +40,7 @@ def test_gait_has_alternating_legs_and_knee_swing():
     assert 50 < knee.max() < 75 and knee.min() < 10
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_subjects_and_keys_change_the_motion():
     a = generate_motion("walk", "S1", num_frames=30, key=jax.random.key(0))
     b = generate_motion("walk", "S1", num_frames=30, key=jax.random.key(0))

@@ -55,6 +55,7 @@ def test_degenerate_weights_are_uniform_and_finite(getkey):
     np.testing.assert_allclose(np.exp(normalised), [1 / (1 + np.e), 0, 0, np.e / (1 + np.e)], atol=1e-12)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_choose_beta_hits_the_survival_target(getkey):
     log_lik = -50.0 * jax.random.uniform(getkey(), (300,)) ** 2
     beta = choose_beta(log_lik, 0.5)
@@ -591,6 +592,7 @@ def test_runs_vmapped_over_keys_equal_separate_runs(walk_prior, getkey):
         np.testing.assert_allclose(eager.estimate, batched.estimate[0], rtol=1e-8, atol=1e-10)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_estimators(walk_prior, getkey):
     from jaxtrack.dynamics import make_pose_random_walk
     from jaxtrack.filters import BestParticle, ProjectedMean, StateMean, WeightedMean, make_estimator

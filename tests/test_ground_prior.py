@@ -58,6 +58,7 @@ def test_gradient_matches_finite_differences(walk):
         assert grad[i] == pytest.approx(fd, rel=1e-4, abs=1e-4)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_jit_and_vmap_agree_with_plain_calls(walk):
     prior = make_ground_prior(humaneva_skeleton(), 0.1)
     poses = jnp.asarray(walk.pose[:8]).at[:, 2].add(-0.03)

@@ -57,6 +57,7 @@ def test_refinable_dynamics_are_a_subclass_and_wrappers_follow_their_inner_dynam
         StateVelocity(Opaque(), jnp.full(6, 0.01), jnp.full(6, 0.02))
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_filters_take_new_dynamics_and_refinement_through_their_constructor():
     likelihood = as_likelihood(_gaussian)
     walk, wider = PoseRandomWalk(jnp.full(3, 0.1)), PoseRandomWalk(jnp.full(3, 0.2))
@@ -80,6 +81,7 @@ def test_filters_take_new_dynamics_and_refinement_through_their_constructor():
             tracker.with_refinement(LangevinRefinement(1)).with_dynamics(Opaque())
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_the_manifold_model_prior_and_file_format_are_apart():
     assert not {"header", "template", "prior"} & set(dir(AbstractManifold))
     assert {"header", "template"} <= set(dir(AbstractSaveableManifold))

@@ -92,6 +92,7 @@ def test_gaussian_log_marginal_survives_duplicate_frames():
     assert np.isfinite(float(make_gplvm(Y, 2).objective())) and Z.shape == (6, 2)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_predictive_interpolates_and_reverts_to_the_prior(small_model):
     m = eqx.tree_at(lambda mm: mm.kernel.log_noise, small_model, jnp.asarray(np.log(1e-8)))
     mean, var = predict(m, m.latent)

@@ -224,6 +224,7 @@ def test_converged_fit_reaches_the_optimum_scipy_reaches(optimiser):
     assert ours[2] < -20 and result.x[2] < -20
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_fit_stops_at_a_target_objective():
     model = _small_gplvm()
     _, full = fit_model(model, max_steps=60, tolerance=0.0)

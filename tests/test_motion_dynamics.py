@@ -72,6 +72,7 @@ def velocity_entries(dynamics, states):
     return np.split(np.asarray(states), cuts, axis=1)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_velocity_moves_particles_round_the_circle(getkey):
     """A known velocity (zero spread, no noise) carries a state round the circle."""
     poses = jnp.asarray(circle(30, speed=0.05, radius=1.5))
@@ -452,6 +453,7 @@ def test_noise_fitted_on_validation_motion(gpdm_prior, walk, getkey):
     assert float(fit_gpdm_latent_dynamics(gpdm_prior, walk[50:55], latent_noise="validation").noise.jump_probability) == 0.0
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_gpapf_fits_its_latent_noise_on_the_validation_motion(gpdm_prior, walk, getkey):
     """GPAPF's default latent dynamics carry the mixture fitted on the validation motion (its
     default since 2026-11-25), not the GPDM's own noise, and its final layer is unchanged."""

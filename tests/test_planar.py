@@ -44,6 +44,7 @@ def test_spm_forward_is_the_hand_computed_chain():
     np.testing.assert_allclose(markers[index("lelbow")], elbow, atol=1e-9)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_spm_states_of_projected_joints_give_the_projected_markers_back():
     motion = signalling_motion(jax.random.key(3), num_frames=20)
     rig = planar.view_sphere_rig((20, 140, 250), (0, 35))

@@ -115,6 +115,7 @@ def test_same_key_same_result_jitted_or_not(gpdm, walk, getkey):
         assert np.all(np.isfinite(np.asarray(jitted.estimate)))
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_build_tracker_wraps_the_residual_inside_the_velocity(gpdm, walk):
     from jaxtrack.tracking import Budget, build_tracker, get_tracker
 

@@ -98,6 +98,7 @@ def test_a_registered_kind_joins_its_family_and_leaves_cleanly():
         ManifoldKind("odd", "", lambda s, d, *, key=None: None, family="graph")
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_a_likelihood_recipe_checks_its_options_and_what_it_builds():
     from jaxtrack.likelihood import SilhouetteLikelihood
 

@@ -20,6 +20,7 @@ def setup():
     return body, rig, pose
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_soft_converges_to_hard(setup):
     body, rig, pose = setup
     hard = np.asarray(hard_silhouettes(body, rig, pose), np.float64)

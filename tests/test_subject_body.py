@@ -236,6 +236,7 @@ def test_the_command_line_refuses_a_height_that_is_not_a_persons(tmp_path, capsy
     assert "not a person's height" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-27)
 def test_auto_does_not_calibrate_a_person_too_small_to_measure(other_subject_scene, capsys):
     _, full, _ = other_subject_scene
     video_only = full.replace(joints3d=None, skeleton_offsets=None, capsule_radii=None)  # a pose, nothing else
