@@ -376,10 +376,12 @@ def test_cmu_walk_and_jog_manifold(shared_data):
 def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
 
-    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "BCGPDM", "SparseGPLVM", "SpectralEmbedding"}
+    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "BCGPDM", "SparseGPLVM", "SpectralEmbedding", "ActiveSetGPLVM"}
     walk, _ = walk_jog
     Y = walk.pose[:30, 6:]
-    for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2)):
+    from jaxtrack.manifold import make_active_set_gplvm
+
+    for model in (make_gplvm(Y, 2), make_bc_gplvm(Y, 2), make_active_set_gplvm(Y, 2, active=12)):
         assert isinstance(model, AbstractManifold) and model.latent_dim == 2 and model.data_dim == 26
         prior = make_manifold_prior(model, 32)
         assert isinstance(prior, ManifoldPrior) and prior.global_dims == 6 and prior.pose_dim == 32
