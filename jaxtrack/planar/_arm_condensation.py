@@ -13,7 +13,7 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from ..filters import weighted_mean
 from ._arm_chain import ArmAnchor, arm_anchor, arm_markers, arm_state_from_markers
-from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices, uniform_start
 from ._model import ArmAR
 from ._templates import MarkerTemplates, marker_templates
 
@@ -35,8 +35,7 @@ class ArmCondensation(AbstractTracker2D):
 
     def init(self, key):
         del key
-        states = jnp.broadcast_to(self.start, (self.particles, 2, 6))
-        return states, jnp.full(self.particles, -jnp.log(self.particles), self.start.dtype)
+        return uniform_start(self.start, self.particles, (2,))  # (x_t, x_{t-1}) per particle
 
     def step(self, state, templates, image, key):
         states, log_weights = state

@@ -131,6 +131,13 @@ def tracker2d_names() -> tuple[str, ...]:
     return _TRACKERS.names()
 
 
+def uniform_start(start, count: int, shape=()):
+    """``count`` copies of ``start`` (each of ``shape + start.shape``) with equal log-weights: every
+    tracker's state at the first frame."""
+    states = jnp.broadcast_to(start, (count, *shape, *jnp.shape(start)))
+    return states, jnp.full(count, -jnp.log(count), jnp.asarray(start).dtype)
+
+
 def resample_indices(key, log_weights):
     """Systematic resampling (the library's), as indices."""
     from ..filters import systematic

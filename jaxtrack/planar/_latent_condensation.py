@@ -17,7 +17,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..filters import weighted_mean
-from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, resample_indices, uniform_start
 from ._spm import SPM_REFERENCE_LENGTHS, spine_to_neck, spm_features, spm_forward, spm_from_markers, spm_state
 from ._templates import MarkerTemplates, marker_templates
 
@@ -45,8 +45,7 @@ class LatentCondensation(AbstractTracker2D):
 
     def init(self, key):
         del key
-        states = jnp.broadcast_to(self.start, (self.particles, self.start.shape[0]))
-        return states, jnp.full(self.particles, -jnp.log(self.particles), self.start.dtype)
+        return uniform_start(self.start, self.particles)
 
     def step(self, state, templates, image, key):
         states, log_weights = state

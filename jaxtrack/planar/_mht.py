@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from ._arm_chain import ArmAnchor, arm_anchor, arm_markers, arm_state_from_markers
 from ._arm_condensation import _cast
-from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, uniform_start
 from ._model import ArmAR
 from ._templates import MarkerTemplates, marker_templates
 
@@ -91,8 +91,7 @@ class MultipleHypothesisTracker(AbstractTracker2D):
 
     def init(self, key):
         del key
-        states = jnp.broadcast_to(self.start, (self.modes, 2, 6))
-        return states, jnp.full(self.modes, -jnp.log(self.modes), self.start.dtype)
+        return uniform_start(self.start, self.modes, (2,))  # (x_t, x_{t-1}) per mode
 
     def step(self, state, templates, image, key):
         modes, _log_weights = state
