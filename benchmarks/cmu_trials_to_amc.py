@@ -4,6 +4,7 @@ values in ASF order; ../shared/data/README.md) back out as one AMC file per tria
 
     python benchmarks/cmu_trials_to_amc.py OUT_DIR [--data ../shared/data/cmu35]
 
+(``jaxtrack.io.read_gpmat_trials`` reads the same trials in memory; ``jaxtrack protocol`` uses it.)
 Writes ``35_NN.amc`` (and a copy of ``35.asf``) for the 31 training trials and the two test
 trials (35_18 jog, 35_29 walk); convert them with ``--source-fps 30``.
 """
@@ -15,9 +16,6 @@ import os
 import shutil
 
 import numpy as np
-
-TRAIN_TRIALS = [*range(1, 18), *range(19, 27), 28, *range(30, 35)]  # GPmat's order of Y's sequences
-TEST_TRIALS = [18, 29]  # Ytest's two sequences
 
 
 def write_amc(path: str, skeleton, values: np.ndarray) -> None:
@@ -39,7 +37,7 @@ def write_amc(path: str, skeleton, values: np.ndarray) -> None:
 def main(argv=None) -> int:
     from scipy.io import loadmat
 
-    from jaxtrack.io import read_asf
+    from jaxtrack.io import GPMAT_TEST_TRIALS, GPMAT_TRAIN_TRIALS, read_asf
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out")
@@ -50,7 +48,7 @@ def main(argv=None) -> int:
     data = loadmat(os.path.join(args.data, "cmu35WalkJog.mat"))
     os.makedirs(args.out, exist_ok=True)
     shutil.copy(asf_path, os.path.join(args.out, "35.asf"))
-    for values, labels, trials in ((data["Y"], data["lbls"], TRAIN_TRIALS), (data["Ytest"], data["lblstest"], TEST_TRIALS)):
+    for values, labels, trials in ((data["Y"], data["lbls"], GPMAT_TRAIN_TRIALS), (data["Ytest"], data["lblstest"], GPMAT_TEST_TRIALS)):
         if labels.shape[1] != len(trials):
             raise ValueError(f"expected {len(trials)} sequences in the .mat, found {labels.shape[1]}")
         for column, trial in enumerate(trials):

@@ -39,7 +39,7 @@ import os
 import time
 
 from bench_output import write_json
-from real_motion import BODY_FACTORS, drift_ratio, other_body_scene
+from real_motion import body_factors, drift_ratio, other_body_scene
 
 # name: (training takes, validation takes, [(test take, frames)]); a take is (dataset, name)
 PROTOCOLS = {
@@ -58,7 +58,7 @@ METHODS = ["sir", "apf", "mrpf", "gpapf", "latentpf", "glegbpf"]
 
 def synthetic_protocol(key, views, frames=100):
     """The demo's S1 / S2 training and validation motion; S3's walk and jog as the test, rendered
-    with the other body (``BODY_FACTORS``, radii withheld) in ``views`` noisy 80x60 views."""
+    with the other body (``body_factors()``, radii withheld) in ``views`` noisy 80x60 views."""
     import dataclasses
 
     import equinox as eqx
@@ -74,7 +74,7 @@ def synthetic_protocol(key, views, frames=100):
     test, names = [], []
     for i, gait in enumerate(("walk", "jog")):
         motion = generate_motion(gait, "S3", num_frames=frames, fps=60.0, key=jax.random.fold_in(key, 500 + i))
-        radii = np.asarray(motion.body.radii) * np.array([BODY_FACTORS[g] for g in motion.body.capsule_groups])
+        radii = np.asarray(motion.body.radii) * np.array([body_factors()[g] for g in motion.body.capsule_groups])
         other = dataclasses.replace(motion, body=eqx.tree_at(lambda b: b.radii, motion.body, jnp.asarray(radii, jnp.float32)))
         scene = build_scene(jax.random.fold_in(key, 600 + i), other, default_rig(80, 60, num_views=views), SilhouetteNoise())
         test.append(scene.replace(capsule_radii=None))
@@ -298,7 +298,7 @@ def main():
                 rows.append({
                     "protocol": name, "test": test_name, "budget": budget, "views": args.views, "frames": scene.num_frames,
                     "train": [f"{t[0]}-{t[1]}" for t in train_takes], "train_frames": args.train_frames, "runs": args.runs,
-                    "body_factors": BODY_FACTORS, "seconds": seconds, "velocity": args.velocity,
+                    "body_factors": body_factors(), "seconds": seconds, "velocity": args.velocity,
                     "manifolds": results["manifolds"],
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],

@@ -42,8 +42,6 @@ import time
 
 from bench_output import write_json
 
-BODY_FACTORS = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
-
 # name: (dataset, training takes, validation takes, test take, test frames (None: all))
 PROTOCOLS = {
     "cmu-walk": ("cmu", ["35_01", "35_02"], ["35_03"], "35_29", 200),
@@ -133,33 +131,31 @@ def load_protocol_takes(parser, folders: dict, name: str, takes) -> dict:
 
 def other_body_scene(key, sequence, views: int, frames, *, withhold: bool = True, clean: bool = False,
                      size: tuple[int, int] = (80, 60)):
-    """The test take rendered with the mismatched body into ``size`` (W, H) views, its radii
-    withheld from the tracker (``withhold=False``: given to it, so the tracker's body is the
-    rendered one), with the default silhouette noise (``clean``: none)."""
-    import jax.numpy as jnp
-    import numpy as np
+    """The test take rendered with the mismatched body (the subject's capsules in
+    ``body_factors()`` radii) into ``size`` (W, H) views, its radii withheld from the tracker
+    (``withhold=False``: given to it), with the default silhouette noise (``clean``: none)."""
+    from jaxtrack.experiment import render_test_take
 
-    from jaxtrack.camera import default_rig
-    from jaxtrack.data import NO_NOISE, SilhouetteNoise, scene_from_sequence
-
-    body = sequence.body()
-    radii = np.asarray(body.radii) * np.array([BODY_FACTORS[g] for g in body.capsule_groups])
-    other = sequence.replace(capsule_radii=np.asarray(jnp.asarray(radii), np.float64))
-    noise = NO_NOISE if clean else SilhouetteNoise()
-    scene = scene_from_sequence(key, other, default_rig(*size, num_views=views), noise, frames=frames)
-    return scene.replace(capsule_radii=None) if withhold else scene
+    return render_test_take(key, sequence, views=views, size=size, frames=frames, renderer="capsules", clean=clean,
+                            withhold=withhold)
 
 
-DIVERGED_RATIO = 1.3  # issue #13's divergence check: last quarter over first, at most 1.3
+def body_factors() -> dict:
+    """The mismatched radii, per capsule group (``jaxtrack.experiment.OTHER_RADII``; imported
+    here, not at the top, so that ``--threads`` pins XLA before JAX starts)."""
+    from jaxtrack.experiment import OTHER_RADII
+
+    return dict(OTHER_RADII)
 
 
 def drift_ratio(curve) -> float:
-    """Mean error over the last quarter of the frames over that of the first quarter."""
-    import numpy as np
+    """``jaxtrack.experiment.drift_ratio``: the last quarter's mean error over the first's."""
+    from jaxtrack.experiment import drift_ratio as ratio
 
-    curve = np.asarray(curve)
-    quarter = max(1, len(curve) // 4)
-    return float(np.mean(curve[-quarter:]) / np.mean(curve[:quarter]))
+    return ratio(curve)
+
+
+DIVERGED_RATIO = 1.3  # issue #13's divergence check: last quarter over first, at most 1.3
 
 
 def main():
@@ -237,7 +233,7 @@ def main():
                     "residual": residual, "likelihood_scale": likelihood_scale, "ground_prior": ground == "on", "body": args.body,
                     "silhouettes": args.silhouettes, "size": list(args.size),
                     "frames": test[0].num_frames,
-                    "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": BODY_FACTORS,
+                    "seconds": seconds, "budget": args.budget, "runs": args.runs, "body_factors": body_factors(),
                     "methods": {m: {"error_mm_mean": per_method[m]["error_mm_mean"], "error_mm_std": per_method[m]["error_mm_std"],
                                     "error_mm_per_run": per_method[m]["error_mm_per_run"],
                                     "last_over_first_quarter": drift_ratio(per_method[m]["per_frame_error_mm"]),

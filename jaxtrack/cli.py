@@ -51,9 +51,8 @@ def _render(args) -> int:
 def _convert(args) -> int:
     import json
 
-    from ._convert import convert_motion
     from .errors import ConfigurationError
-    from .io import check_output
+    from .io import check_output, convert_motion
 
     args.out = check_output(args.out, [args.source, args.asf, args.mapping], suffix=".npz")
     mapping = None
@@ -375,6 +374,46 @@ def _experiment(args) -> int:
     return 0
 
 
+def _image_size(text: str) -> tuple[int, int]:
+    """``WxH`` in pixels, each side 8..``MAX_IMAGE_SIDE``."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels (e.g. 80x60), got {text!r}") from None
+    if not all(8 <= v <= MAX_IMAGE_SIDE for v in (width, height)):
+        raise argparse.ArgumentTypeError(f"each side must be 8 to {MAX_IMAGE_SIDE} pixels, got {text!r}")
+    return width, height
+
+
+def _protocol(args) -> int:
+    from .experiment import ExperimentConfig, get_protocol, run_protocol
+    from .io import check_folder
+
+    config = ExperimentConfig(
+        methods=tuple(args.methods), runs=args.runs, seed=args.seed, batch_runs=args.batch_runs, latent_dim=args.latent_dim,
+        fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold, **_spec_fields(args),
+    )
+    protocol = get_protocol(args.name)
+    if args.subjects:
+        for subject in args.subjects:
+            protocol.subject(subject)  # unknown names refused before any work
+    if not os.path.isdir(args.data):
+        raise FileNotFoundError(f"{args.data}: no such folder (--data: the shared motion capture, with cmu35/ and multi_subject/)")
+    check_folder(args.out)
+    rows = run_protocol(protocol, args.data, args.out, config, modes=tuple(args.modes), subjects=args.subjects, views=args.views,
+                        size=args.image_size, renderer=args.renderer, progress=True)
+    from .experiment import protocol_table
+
+    print()
+    print(protocol_table(rows, title=f"{protocol.name}: {protocol.description}"))
+    print(f"wrote {os.path.join(args.out, 'protocol.json')} and table.md (each fold's experiment in its own folder)")
+    refused = sorted({f"{r['mode']}-{r['subject']} {m}" for r in rows for m in r["refused"]})
+    if refused:
+        print("jaxtrack protocol: error: refused: " + "; ".join(refused) + " (the other methods' results are written)", file=sys.stderr)
+        return 2
+    return 0
+
+
 def _body_choice(args) -> str:
     """``--body``, or "calibrate" with ``--calibrate-body``."""
     if args.calibrate_body:
@@ -631,9 +670,37 @@ def _likelihood_options(args) -> dict:
     return _options(args.likelihood_option, recipe.options, f"likelihood {recipe.name!r}")
 
 
+def _experiment_arguments(experiment) -> None:
+    """The trackers, runs, manifold fit and seed of ``experiment`` and ``protocol``."""
+    from .manifold import DEFAULT_OPTIMISER, OPTIMISERS, manifold_kinds
+    from .tracking import PAPER_TRACKERS, available_trackers
+
+    experiment.add_argument("--methods", nargs="+", default=list(PAPER_TRACKERS), choices=available_trackers(),
+                            help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
+    experiment.add_argument("--plugin", action="append", default=[],
+                            help="a module (dotted name or .py file) to import first; it may register trackers")
+    experiment.add_argument("--runs", type=_at_least(1), default=5, help="runs per method (default: %(default)s)")
+    experiment.add_argument("--batch-runs", action="store_true",
+                            help="track each method's runs in one compiled call (vmapped over the runs' keys)")
+    experiment.add_argument("--latent-dim", type=int,
+                            help="latent dimension of every manifold (default: each tracker's own, MRPF 2, GPAPF and LatentPF 3; "
+                                 "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
+    experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
+    experiment.add_argument("--fit-optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
+                            help="the manifold fit's L-BFGS: one evaluation per loop iteration (lbfgs, the default: compiles in "
+                                 "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
+                                 "measured before 2026-11-26)")
+    experiment.add_argument("--seed", type=_seed, default=0)
+    experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
+                            help="the manifold of every manifold tracker of its family (GP: "
+                                 f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "
+                                 f"{', '.join(manifold_kinds(family='spectral', trackable=True))}; the other family keeps its "
+                                 f"own) (default: each tracker's own: {_manifold_defaults()})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .manifold import DEFAULT_OPTIMISER, OPTIMISERS, get_manifold_kind, manifold_kinds
-    from .tracking import PAPER_TRACKERS, available_trackers
+    from .tracking import available_trackers
 
     parser = argparse.ArgumentParser(
         prog="jaxtrack", description="Articulated human motion tracking with particle filters and pose manifolds, in JAX."
@@ -754,32 +821,35 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--validation", nargs="+", required=True,
                             help="validation sequence file(s): the trackers' dynamics are fitted on them (000 sec. 5.2)")
     experiment.add_argument("--test", nargs="+", required=True, help="test sequence files with silhouettes, cameras and ground truth")
-    experiment.add_argument("--methods", nargs="+", default=list(PAPER_TRACKERS), choices=available_trackers(),
-                            help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
-    experiment.add_argument("--plugin", action="append", default=[],
-                            help="a module (dotted name or .py file) to import first; it may register trackers")
-    experiment.add_argument("--runs", type=_at_least(1), default=5, help="runs per method (default: %(default)s)")
-    experiment.add_argument("--batch-runs", action="store_true",
-                            help="track each method's runs in one compiled call (vmapped over the runs' keys)")
-    experiment.add_argument("--latent-dim", type=int,
-                            help="latent dimension of every manifold (default: each tracker's own, MRPF 2, GPAPF and LatentPF 3; "
-                                 "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
-    experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
-    experiment.add_argument("--fit-optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
-                            help="the manifold fit's L-BFGS: one evaluation per loop iteration (lbfgs, the default: compiles in "
-                                 "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
-                                 "measured before 2026-11-26)")
+    _experiment_arguments(experiment)
     experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
-    experiment.add_argument("--seed", type=_seed, default=0)
-    experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
-                            help="the manifold of every manifold tracker of its family (GP: "
-                                 f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "
-                                 f"{', '.join(manifold_kinds(family='spectral', trackable=True))}; the other family keeps its "
-                                 f"own) (default: each tracker's own: {_manifold_defaults()})")
     _spec_arguments(experiment, "every tracker", "each test sequence")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
     experiment.set_defaults(run=_experiment)
+
+    protocol = sub.add_parser("protocol", help="trackers on people the manifold has never seen: a leave-one-subject-out "
+                              "protocol end to end, with its within-subject rows (table)")
+    from .experiment import FOLD_MODES, PROTOCOLS, RENDERERS
+
+    protocol.add_argument("name", choices=list(PROTOCOLS),
+                          help="; ".join(f"{n}: {p.description}" for n, p in PROTOCOLS.items()))
+    protocol.add_argument("--data", default=os.path.join("..", "shared", "data"),
+                          help="the shared motion-capture folder (cmu35/, multi_subject/) (default: %(default)s)")
+    protocol.add_argument("--modes", nargs="+", choices=FOLD_MODES, default=list(FOLD_MODES),
+                          help="cross: the test subject left out of training; within: trained on its own other takes "
+                               "(default: both)")
+    protocol.add_argument("--subjects", nargs="+", help="test subjects (default: each in turn)")
+    protocol.add_argument("--views", type=_at_least(1, 64), default=3, help="cameras (default: %(default)s)")
+    protocol.add_argument("--image-size", type=_image_size, default=(80, 60), metavar="WxH",
+                          help="the test views' size in pixels (default: 80x60)")
+    protocol.add_argument("--renderer", choices=RENDERERS, default="solid",
+                          help="the body that draws the test silhouettes: solid (ellipsoids with feet and hands) or capsules "
+                               "(the subject's skeleton in other radii); never the tracker's (default: %(default)s)")
+    _experiment_arguments(protocol)
+    _spec_arguments(protocol, "every tracker", "each test take")
+    protocol.add_argument("--out", default="jaxtrack_protocol", help="output folder (default: %(default)s)")
+    protocol.set_defaults(run=_protocol)
 
     track = sub.add_parser("track", help="track one test sequence with a fitted manifold and write the estimates")
     track.add_argument("test", nargs="?",
@@ -808,7 +878,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "over the model's latent space (default: truth when the test file has it, else auto)")
     track.add_argument("--overlay", metavar="MP4", help="with --video: also write the estimate drawn over the videos")
     track.add_argument("--model", required=True,
-                       help="a model file from 'jaxtrack fit' (a gpdm for gpapf; mrpf-alg1 needs a bc-gplvm; glegbpf a gle, tle or le)")
+                       help="a model file from 'jaxtrack fit': a GP manifold (gpdm, bc-gplvm, ...) for mrpf, mrpf-alg1, gpapf "
+                            "and latentpf (on a GPDM the latent draw is its dynamics, on a BC-GPLVM 000 eq. 27's); a gle, tle "
+                            "or le for glegbpf")
     track.add_argument("--validation", required=True,
                        help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())

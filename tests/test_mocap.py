@@ -9,6 +9,7 @@ import pytest
 from jaxtrack.body import inverse_kinematics, retarget_positions
 from jaxtrack.cli import main
 from jaxtrack.data import generate_motion
+from jaxtrack.errors import ConfigurationError
 from jaxtrack.io import (
     MotionFileError,
     load_asf_amc,
@@ -273,6 +274,17 @@ def test_convert_cli_on_joint_arrays(tmp_path, capsys):
     assert "residual mean" in capsys.readouterr().out
     assert main(["convert", str(tmp_path / "x.amc"), str(out)]) == 2
     assert "pass --asf" in capsys.readouterr().err
+    # A motion file whose lengths are centimetres read as metres (a BVH's offsets, an ASF's units):
+    # refused before the inverse kinematics, naming the source and the units it looks like.
+    from jaxtrack.io import MotionCapture, convert_motion
+
+    names = tuple(motion.body.skeleton.joint_names)
+    in_cm = MotionCapture(names, tuple(motion.body.skeleton.parents), 100.0 * np.asarray(motion.joints3d), 60.0, (),
+                          np.zeros((30, 0)), "walk_cm.bvh")
+    started = time.perf_counter()
+    with pytest.raises(ConfigurationError, match=r"walk_cm.bvh: the legs \(hip to ankle\) are .* looks like centimetres"):
+        convert_motion(in_cm, None)
+    assert time.perf_counter() - started < 5.0
 
 
 # --- real motion capture from ../shared/data (skipped when absent) -------------------------

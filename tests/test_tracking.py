@@ -210,8 +210,12 @@ def test_refined_budget_pays_for_gradients_with_particles():
     apf = build_tracker(get_tracker("apf"), fitted, flat, Budget(100, 3, 1, 10.0))  # no divisibility needed
     assert apf.num_particles == 100 // 13 and apf.refine.num_steps == 1
     assert build_tracker(get_tracker("sir"), fitted, flat, Budget(100)).refine is None
-    with pytest.raises(ValueError, match="cannot pay for one particle"):
-        Budget(100, 5, refine_steps=3)
+    with pytest.raises(ValueError, match="cannot pay for one particle and 3 refined moves"):
+        Budget(30, 5, refine_steps=3, gradient_cost=10.0)
+    # Five layers are the annealed trackers' business: SIR runs on a budget of 1, APF names itself.
+    get_tracker("sir").check_budget(Budget(1, 5))
+    with pytest.raises(ValueError, match="one particle through 5 annealing layers of APF; give at least 5"):
+        get_tracker("apf").check_budget(Budget(4, 5))
     with pytest.raises(ValueError, match="the budget pays for 2"):
         build_tracker(get_tracker("sir"), fitted, flat, Budget(100, 1, 2, 10.0), LangevinRefinement(3))
 

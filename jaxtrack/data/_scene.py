@@ -274,6 +274,7 @@ def scene_from_sequence(
     frames: int | None = None,
     centre: bool = True,
     progress: bool = False,
+    solid: SolidBody | None = None,
 ) -> Sequence:
     """Render recorded motion (e.g. CMU or Bandai after ``jaxtrack convert``) into a synthetic
     multi-view silhouette scene with the sequence's own body: the HumanEva-like test setting on
@@ -287,6 +288,7 @@ def scene_from_sequence(
         start, frames: the frame range to keep (``frames=None``: to the end).
         centre: shift the root's horizontal path so its midpoint is the capture area's
             centre (recorded takes cross several metres of floor).
+        solid: render this body instead of the sequence's capsules (``build_scene``).
     Raises:
         ValueError: no ``pose``, an empty frame range, or the body outside a view
             (``build_scene``'s checks).
@@ -315,4 +317,4 @@ def scene_from_sequence(
     motion = SyntheticMotion(
         body=body, pose=pose, joints3d=joints, fps=float(sequence.fps), gait="recorded", subject="recorded", speed=speed
     )
-    return build_scene(key, motion, rig, noise, progress=progress)
+    return build_scene(key, motion, rig, noise, progress=progress, solid=solid)

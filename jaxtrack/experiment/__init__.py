@@ -3,6 +3,21 @@ runs, the joint error of 000 eq. 31, and the reports (results.json, 000 Table 1'
 error curves of 000 Fig. 6, overlay animations)."""
 
 from ._config import ExperimentConfig as ExperimentConfig
+from ._protocols import FOLD_MODES as FOLD_MODES
+from ._protocols import OTHER_RADII as OTHER_RADII
+from ._protocols import PROTOCOLS as PROTOCOLS
+from ._protocols import RENDERERS as RENDERERS
+from ._protocols import Fold as Fold
+from ._protocols import ProtocolSubject as ProtocolSubject
+from ._protocols import SubjectProtocol as SubjectProtocol
+from ._protocols import Take as Take
+from ._protocols import convert_takes as convert_takes
+from ._protocols import drift_ratio as drift_ratio
+from ._protocols import get_protocol as get_protocol
+from ._protocols import nearest_pose_floor_mm as nearest_pose_floor_mm
+from ._protocols import protocol_table as protocol_table
+from ._protocols import render_test_take as render_test_take
+from ._protocols import run_protocol as run_protocol
 from ._report import method_label as method_label
 from ._report import plot_error_curves as plot_error_curves
 from ._report import results_table as results_table

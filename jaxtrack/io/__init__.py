@@ -14,6 +14,12 @@ from ._calibration import CalibrationFileError as CalibrationFileError
 from ._calibration import read_calibration as read_calibration
 from ._calibration import rodrigues as rodrigues
 from ._calibration import save_calibration as save_calibration
+from ._convert import ConversionReport as ConversionReport
+from ._convert import convert_motion as convert_motion
+from ._convert import load_motion as load_motion
+from ._gpmat import GPMAT_TEST_TRIALS as GPMAT_TEST_TRIALS
+from ._gpmat import GPMAT_TRAIN_TRIALS as GPMAT_TRAIN_TRIALS
+from ._gpmat import read_gpmat_trials as read_gpmat_trials
 from ._joints import load_joints3d as load_joints3d
 from ._joints import resample as resample
 from ._keypoints import KEYPOINT_FORMATS as KEYPOINT_FORMATS

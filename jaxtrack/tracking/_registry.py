@@ -45,9 +45,9 @@ class Budget:
             raise ValueError(f"budget refine_steps must be a non-negative integer, got {self.refine_steps!r}")
         if not self.gradient_cost > 0:
             raise ValueError(f"budget gradient_cost must be positive, got {self.gradient_cost!r}")
-        if self.particles_for(self.layers) < 1:
-            raise ValueError(f"a budget of {self.evaluations} evaluations cannot pay for one particle through {self.layers} "
-                             f"layers and {self.refine_steps} refined moves at {self.gradient_cost:g} evaluations a gradient")
+        if self.particles_for(1) < 1:  # the annealed trackers check their layers themselves (TrackerRecipe.check_budget)
+            raise ValueError(f"a budget of {self.evaluations} evaluations cannot pay for one particle and {self.refine_steps} "
+                             f"refined moves at {self.gradient_cost:g} evaluations a gradient")
 
     def particles_for(self, layers: int) -> int:
         """Particles per layer of a tracker with ``layers`` layers per frame."""
@@ -201,6 +201,10 @@ class TrackerRecipe:
             return
         if budget.layers < self.min_layers:
             raise ValueError(f"{self.label} needs at least {self.min_layers} layers, got {budget.layers}")
+        if budget.per_layer < 1:
+            raise ValueError(f"a budget of {budget.evaluations} evaluations cannot pay for one particle through {budget.layers} "
+                             f"annealing layers of {self.label}" + (f" and {budget.refine_steps} refined moves" if budget.refine_steps
+                                                                    else "") + f"; give at least {budget.layers} or fewer --layers")
         if budget.evaluations % budget.layers and not budget.refine_steps:
             raise ValueError(
                 f"a budget of {budget.evaluations} likelihood evaluations cannot be split into {budget.layers} equal "

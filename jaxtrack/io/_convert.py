@@ -10,9 +10,13 @@ import os
 import jax
 import numpy as np
 
-from .body import inverse_kinematics, retarget_positions
-from .errors import ConfigurationError
-from .io import Sequence, load_asf_amc, load_bvh, load_joints3d, resample, save_sequence
+from ..body import inverse_kinematics, retarget_positions
+from ..errors import ConfigurationError
+from ._asf_amc import load_asf_amc
+from ._bvh import load_bvh
+from ._joints import load_joints3d, resample
+from ._mocap import MotionCapture
+from ._sequence import Sequence, save_sequence
 
 
 @dataclasses.dataclass
@@ -49,8 +53,35 @@ def load_motion(source: str, *, asf: str | None = None, source_fps: float | None
     raise ValueError(f"{source}: unsupported motion format {extension!r} (use .amc with .asf, .bvh or .npz)")
 
 
+LEG_LENGTH_M = (0.25, 1.5)
+"""Plausible hip-to-ankle lengths of a person, metres: a motion file outside them is in other
+units (or is not a person) and is refused before the inverse kinematics."""
+
+
+def check_motion_units(joints: np.ndarray, source: str) -> float:
+    """The median hip-to-ankle length (m) of (T, 15, 3) HumanEva joints, or ``ConfigurationError``
+    naming the file and the units it looks like when no person's legs are that long."""
+    from ..body import HUMANEVA_JOINTS
+
+    index = HUMANEVA_JOINTS.index
+
+    def segment(a, b):
+        return np.linalg.norm(joints[:, index(a)] - joints[:, index(b)], axis=-1)
+
+    lengths = [segment(h, k) + segment(k, a) for h, k, a in (("lhip", "lknee", "lankle"), ("rhip", "rknee", "rankle"))]
+    leg = float(np.nanmedian(np.concatenate(lengths)))
+    low, high = LEG_LENGTH_M
+    if low <= leg <= high:
+        return leg
+    guesses = [(name, factor) for name, factor in (("centimetres", 100.0), ("millimetres", 1000.0), ("inches", 1 / 0.0254))
+               if low <= leg / factor <= high]
+    hint = f": it looks like {guesses[0][0]} (lengths are read as metres)" if guesses else ""
+    raise ConfigurationError(f"{source}: the legs (hip to ankle) are {leg:.4g} m long, no person's are ({low:g}-{high:g} m){hint}; "
+                             "check the file's units (an ASF's ':units length', a BVH's offsets)")
+
+
 def convert_motion(
-    source: str,
+    source: str | MotionCapture,
     out: str | None,
     *,
     fps: float | None = None,
@@ -60,7 +91,8 @@ def convert_motion(
     seed: int = 0,
     verbose: bool = False,
 ) -> ConversionReport:
-    """Convert a motion file to a sequence file (``out``; not written when None).
+    """Convert a motion file (or a loaded ``MotionCapture``) to a sequence file (``out``; not
+    written when None).
 
     Args:
         fps: output frame rate (default: the source's).
@@ -69,11 +101,16 @@ def convert_motion(
         mapping: HumanEva joint -> source joint(s); guessed for CMU and Bandai skeletons.
         seed: PRNG seed of the inverse kinematics' first-frame restarts.
     """
-    motion = load_motion(source, asf=asf, source_fps=source_fps)
+    if isinstance(source, MotionCapture):
+        motion = source if source_fps is None else dataclasses.replace(source, fps=float(source_fps))
+        source = motion.source
+    else:
+        motion = load_motion(source, asf=asf, source_fps=source_fps)
     try:
         joints = retarget_positions(motion.positions, motion.joint_names, mapping)
     except ValueError as err:  # the mapping does not fit this file's skeleton: say which file
         raise ConfigurationError(f"{source}: {err}") from err
+    check_motion_units(joints, str(source))
     target_fps = float(fps) if fps is not None else motion.fps
     joints = resample(joints, motion.fps, target_fps)
     if verbose:

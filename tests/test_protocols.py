@@ -1,0 +1,153 @@
+"""Leave-one-subject-out protocols (issue #46): the folds never show a tracker its test
+subject's motion, the table's verdicts are computed from the rows, GPmat's trials are read
+exactly, and a protocol runs end to end and resumes."""
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+import pytest
+
+from jaxtrack.cli import main
+from jaxtrack.errors import ConfigurationError
+from jaxtrack.experiment import (
+    PROTOCOLS,
+    ExperimentConfig,
+    ProtocolSubject,
+    SubjectProtocol,
+    Take,
+    drift_ratio,
+    protocol_table,
+    run_protocol,
+)
+
+
+@pytest.mark.parametrize("name", sorted(PROTOCOLS))
+def test_cross_folds_never_train_on_the_test_subject(name):
+    protocol = PROTOCOLS[name]
+    subjects = [s.name for s in protocol.subjects]
+    folds = protocol.folds()
+    assert [(f.mode, f.subject) for f in folds] == [(m, s) for s in subjects for m in ("cross", "within")]
+    test_takes = {s.test.name for s in protocol.subjects}
+    for fold in folds:
+        assert fold.test.subject == fold.subject and fold.test.name not in {t.name for t in fold.train + fold.validation}
+        assert not test_takes & {t.name for t in fold.train + fold.validation}  # no subject's test take is ever learnt from
+        if fold.mode == "cross":
+            assert {t.subject for t in fold.train + fold.validation} == set(subjects) - {fold.subject}
+        else:
+            assert {t.subject for t in fold.train + fold.validation} == {fold.subject}
+        assert fold.train and fold.validation
+
+
+def test_a_subject_without_a_validation_take_says_so():
+    def take(subject, name):
+        return Take(subject, name, f"{name}.amc", 120.0, "x.asf")
+
+    protocol = SubjectProtocol("p", "two people", (
+        ProtocolSubject("a", take("a", "a1"), (take("a", "a2"),)),
+        ProtocolSubject("b", take("b", "b1"), (take("b", "b2"), take("b", "b3")), take("b", "b4"))))
+    within = protocol.fold("within", "a")
+    assert [t.name for t in within.validation] == ["a2"] and "no third take" in within.note
+    cross = protocol.fold("cross", "b")  # the only other subject has no validation take: its training take serves
+    assert [t.name for t in cross.train] == ["a2"] and [t.name for t in cross.validation] == ["a2"] and cross.note
+    assert [t.name for t in protocol.fold("cross", "a").validation] == ["b4"]
+    with pytest.raises(ConfigurationError, match="no subject 'c'"):
+        protocol.fold("cross", "c")
+    with pytest.raises(ConfigurationError, match="fold mode"):
+        protocol.fold("sideways", "a")
+    with pytest.raises(ConfigurationError, match="take name is used twice"):
+        SubjectProtocol("q", "", (ProtocolSubject("a", take("a", "x"), (take("a", "y"),)),
+                                  ProtocolSubject("b", take("b", "x"), (take("b", "z"),))))
+
+
+@pytest.mark.slow  # converts two takes: 15 s or more on 2 cores with an empty compilation cache
+@pytest.mark.shared_data
+def test_the_nearest_training_pose_floor(shared_data, tmp_path):
+    from jaxtrack.experiment import convert_takes, nearest_pose_floor_mm
+
+    jog = PROTOCOLS["jog-loso"]
+    bd, dg = jog.subject("hdm05-bd"), jog.subject("hdm05-dg")
+    sequences = convert_takes([bd.test, dg.test], shared_data, str(tmp_path), say=lambda *a: None)
+    own, other = sequences[bd.test.name], sequences[dg.test.name]
+    assert nearest_pose_floor_mm([own], own) == pytest.approx(0.0, abs=1e-9)  # every pose is in the training set
+    crossed = nearest_pose_floor_mm([other], own)
+    assert 10.0 < crossed < 200.0
+    # Adding the test take's own frames can only bring the nearest pose closer.
+    assert nearest_pose_floor_mm([other, own.cropped(40)], own) < crossed
+
+
+def _row(mode, subject, errors, budget=500):
+    methods = {m: {"error_mm_mean": e, "error_mm_std": 1.0, "last_over_first_quarter": d} for m, (e, d) in errors.items()}
+    return {"mode": mode, "subject": subject, "budget": budget, "runs": 5, "views": 3, "size": [80, 60], "renderer": "solid",
+            "methods": methods, "refused": {}, "start_error_mm": 0.3}
+
+
+def test_the_table_verdicts_are_computed_from_the_rows():
+    rows = [
+        _row("cross", "a", {"sir": (100, 1.0), "apf": (90, 1.0), "mrpf": (60, 1.0), "glegbpf": (80, 1.0)}),
+        _row("within", "a", {"sir": (95, 1.0), "apf": (85, 1.0), "mrpf": (40, 1.0), "glegbpf": (50, 1.0)}),
+        _row("cross", "b", {"sir": (100, 1.0), "apf": (70, 1.0), "mrpf": (75, 1.0), "glegbpf": (72, 1.4)}),
+        _row("within", "b", {"sir": (100, 1.0), "apf": (70, 1.0), "mrpf": (50, 1.0), "glegbpf": (60, 1.0)}),
+    ]
+    table = protocol_table(rows, title="t")
+    assert "| a (b500) | others | 0.3 | - | 100.0 (1.0) d1.00 |" in table
+    assert "GLE-GbPF beats SIR and APF on 1 of 2 left-out subjects (a)" in table
+    assert "the best manifold tracker beats SIR and APF on 1 of 2 left-out subjects" in table
+    # a: the best manifold tracker across people is MRPF, 60 mm, 1.50x its own 40 mm
+    assert ("a: cross / within: sir 1.05, apf 1.06, mrpf 1.50, glegbpf 1.60; best manifold tracker across people mrpf 60.0 mm, "
+            "1.50x") in table
+    assert "drift over 1.3: b cross glegbpf 1.40" in table
+    assert drift_ratio([1, 1, 1, 1, 2, 2, 2, 3]) == pytest.approx(2.5)  # last two frames over the first two
+
+
+@pytest.mark.shared_data
+def test_gpmat_trials_are_every_fourth_frame_of_the_raw_take(shared_data):
+    from jaxtrack.io import load_asf_amc, read_gpmat_trials
+
+    cmu = os.path.join(shared_data, "cmu35")
+    trials = read_gpmat_trials(os.path.join(cmu, "cmu35WalkJog.mat"), os.path.join(cmu, "35.asf"), ["35_01", "35_18"])
+    raw = load_asf_amc(os.path.join(cmu, "35.asf"), os.path.join(cmu, "35_01.amc"), fps=120.0)
+    first = trials["35_01"]
+    assert first.fps == 30.0 and trials["35_18"].num_frames == 44
+    np.testing.assert_allclose(first.positions, raw.positions[: 4 * first.num_frames : 4], atol=1e-6)
+    with pytest.raises(ValueError, match="holds no trial 35_99"):
+        read_gpmat_trials(os.path.join(cmu, "cmu35WalkJog.mat"), os.path.join(cmu, "35.asf"), ["35_99"])
+
+
+def test_protocol_command_refuses_an_unknown_subject_and_a_missing_folder(tmp_path, capsys):
+    assert main(["protocol", "walk-loso", "--subjects", "cmu99", "--out", str(tmp_path / "o")]) == 2
+    assert "no subject 'cmu99'" in capsys.readouterr().err
+    assert main(["protocol", "jog-loso", "--data", str(tmp_path / "none"), "--out", str(tmp_path / "o")]) == 2
+    assert "no such folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["protocol", "jog-loso", "--image-size", "80by60"])
+    assert "WIDTHxHEIGHT" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # converts four takes and fits two manifolds: about a minute on 2 cores
+@pytest.mark.shared_data
+def test_a_protocol_runs_end_to_end_and_resumes(shared_data, tmp_path):
+    jog = PROTOCOLS["jog-loso"]
+    small = dataclasses.replace(jog, name="two-actors", subjects=tuple(s for s in jog.subjects if s.name in ("hdm05-bd", "hdm05-dg")),
+                                test_frames=12, train_frames=60)
+    config = ExperimentConfig(methods=("sir", "glegbpf"), runs=1, budget=60, fit_steps=20)
+    said = []
+    rows = run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
+    assert [(r["mode"], r["subject"]) for r in rows] == [("cross", "hdm05-bd"), ("within", "hdm05-bd")]
+    assert rows[0]["train"] == ["HDM_dg_jogLeftCircle4StepsRstart_009_120"]
+    assert rows[1]["train"] == ["HDM_bd_jogLeftCircle4StepsRstart_002_120"]
+    for row in rows:
+        assert set(row["methods"]) == {"sir", "glegbpf"} and row["start_error_mm"] < 5.0  # the file's own skeleton: IK residual
+        assert all(np.isfinite(m["error_mm_mean"]) and len(m["per_frame_error_mm"]) == 12 for m in row["methods"].values())
+        assert 0.0 < row["nearest_training_pose_mm"] < 200.0
+    stored = json.loads((tmp_path / "protocol.json").read_text())
+    assert stored["rows"] == json.loads(json.dumps(rows))
+    assert "two-actors" in (tmp_path / "table.md").read_text()
+    # The silhouettes are the same scene in both folds; the converted files carry the subject.
+    from jaxtrack.io import load_sequence
+
+    assert load_sequence(str(tmp_path / "converted" / "HDM_bd_jogLeftCircle4StepsRstart_001_120.npz")).subject == "hdm05-bd"
+    said.clear()
+    again = run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
+    assert again == json.loads(json.dumps(rows)) and sum("already" in s for s in said) == 2
