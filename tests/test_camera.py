@@ -122,3 +122,13 @@ def test_make_rig_validation():
     uv_big, _, _ = project_points(rig, jnp.array([0.0, 0.1, 1.2]))
     uv_small, _, _ = project_points(small, jnp.array([0.0, 0.1, 1.2]))
     np.testing.assert_allclose((np.asarray(uv_big) + 0.5) / 2 - 0.5, uv_small, rtol=1e-6)
+
+
+def test_default_rig_refuses_no_views_and_a_bad_distance():
+    from jaxtrack.camera import default_rig
+
+    with pytest.raises(ValueError, match="num_views must be a positive integer, got 0"):
+        default_rig(80, 60, num_views=0)
+    with pytest.raises(ValueError, match="distance must be a positive number of metres"):
+        default_rig(80, 60, distance=float("nan"))
+    assert default_rig(80, 60, num_views=1).num_views == 1

@@ -96,7 +96,9 @@ def test_the_table_verdicts_are_computed_from_the_rows():
     assert "the best manifold tracker beats SIR and APF on 1 of 2 left-out subjects" in table
     # a: the best manifold tracker across people is MRPF, 60 mm, 1.50x its own 40 mm
     assert ("a: cross / within: sir 1.05, apf 1.06, mrpf 1.50, glegbpf 1.60; best manifold tracker across people mrpf 60.0 mm, "
-            "1.50x") in table
+            "1.50x its within-subject error (1.50x the best within-subject one, mrpf 40.0 mm)") in table
+    # b: GLE-GbPF is the best across people (72 mm), MRPF within (50 mm): 72 / 60 and 72 / 50
+    assert "best manifold tracker across people glegbpf 72.0 mm, 1.20x its within-subject error (1.44x the best" in table
     assert "drift over 1.3: b cross glegbpf 1.40" in table
     assert drift_ratio([1, 1, 1, 1, 2, 2, 2, 3]) == pytest.approx(2.5)  # last two frames over the first two
 

@@ -229,6 +229,10 @@ def default_rig(
         focal_ratio: focal length as a multiple of the image width.
         dist: optional (5,) or (C, 5) distortion applied to every camera.
     """
+    if isinstance(num_views, bool) or not isinstance(num_views, (int, np.integer)) or num_views < 1:
+        raise ValueError(f"num_views must be a positive integer, got {num_views!r}")
+    if not (np.isfinite(distance) and distance > 0):
+        raise ValueError(f"distance must be a positive number of metres, got {distance!r}")
     f = focal_ratio * width
     K = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1.0]])
     Rs, ts = [], []

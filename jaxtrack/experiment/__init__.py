@@ -15,6 +15,7 @@ from ._protocols import convert_takes as convert_takes
 from ._protocols import drift_ratio as drift_ratio
 from ._protocols import get_protocol as get_protocol
 from ._protocols import nearest_pose_floor_mm as nearest_pose_floor_mm
+from ._protocols import plot_protocol as plot_protocol
 from ._protocols import protocol_table as protocol_table
 from ._protocols import render_test_take as render_test_take
 from ._protocols import run_protocol as run_protocol

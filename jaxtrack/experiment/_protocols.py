@@ -395,6 +395,57 @@ def write_protocol_outputs(protocol: SubjectProtocol, rows: list[dict], out_dir:
         handle.write(json.dumps(document, indent=1).encode())
     with atomic_write(os.path.join(out_dir, "table.md")) as handle:
         handle.write((protocol_table(rows, title=f"{protocol.name}: {protocol.description}") + "\n").encode())
+    if rows:
+        plot_protocol(rows, os.path.join(out_dir, "protocol.png"), title=protocol.name)
+
+
+def plot_protocol(rows: list[dict], path: str, *, title: str = "") -> str:
+    """Per left-out subject, each tracker's mean error trained on other people (solid bars) and on
+    the subject's own takes (hatched), with the nearest training pose of each (dashed and dotted
+    lines): the cost of crossing people at a glance. Errors above 300 mm are clipped (marked)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ._report import method_label
+
+    budgets = sorted({r["budget"] for r in rows})
+    subjects = list(dict.fromkeys(r["subject"] for r in rows))
+    methods = list(dict.fromkeys(m for r in rows for m in r["methods"]))
+    fig, axes = plt.subplots(len(budgets), 1, figsize=(max(6.0, 1.9 * len(subjects) + 1.5), 3.2 * len(budgets)), squeeze=False)
+    width = 0.8 / max(1, len(methods))
+    clip = 300.0
+    for ax, budget in zip(axes[:, 0], budgets):
+        for j, method in enumerate(methods):
+            for mode, style in (("cross", {}), ("within", {"hatch": "///", "alpha": 0.55})):
+                xs, ys = [], []
+                for i, subject in enumerate(subjects):
+                    row = next((r for r in rows if r["subject"] == subject and r["mode"] == mode and r["budget"] == budget), None)
+                    if row is not None and method in row["methods"]:
+                        offset = -0.2 * width if mode == "cross" else 0.2 * width
+                        xs.append(i + (j - (len(methods) - 1) / 2) * width + offset)
+                        ys.append(row["methods"][method]["error_mm_mean"])
+                bars = ax.bar(xs, [min(y, clip) for y in ys], width * 0.6, color=f"C{j}", edgecolor=f"C{j}",
+                              label=method_label(method) if mode == "cross" else None, **style)
+                for bar, y in zip(bars, ys):
+                    if y > clip:
+                        ax.text(bar.get_x(), clip, f"{y:.0f}", fontsize=6, rotation=90, va="top")
+        for i, subject in enumerate(subjects):
+            for mode, line in (("cross", "--"), ("within", ":")):
+                row = next((r for r in rows if r["subject"] == subject and r["mode"] == mode and r["budget"] == budget), None)
+                if row is not None and row.get("nearest_training_pose_mm") is not None:
+                    ax.hlines(row["nearest_training_pose_mm"], i - 0.45, i + 0.45, colors="k", linestyles=line, lw=1)
+        ax.set_xticks(range(len(subjects)), subjects)
+        ax.set_ylabel("mean joint error (mm)")
+        ax.set_ylim(0, clip)
+        ax.set_title(f"{title}, budget {budget}: solid = trained on other people, hatched = on the subject's own takes;\n"
+                     "dashed / dotted line = the nearest training pose (other people / own takes)", fontsize=8)
+        ax.legend(fontsize=7, ncol=min(3, len(methods)), loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 MANIFOLD_TRACKERS_FIRST = ("mrpf", "gpapf", "latentpf", "glegbpf", "vlmmpf")
@@ -454,9 +505,12 @@ def protocol_verdicts(rows: list[dict]) -> list[str]:
             if own is None or not manifold:
                 continue
             best = min(manifold, key=lambda m: error(r, m))
+            best_own = min(manifold, key=lambda m: error(own, m))
             ratios = ", ".join(f"{m} {error(r, m) / error(own, m):.2f}" for m in r["methods"] if m in own["methods"])
             out.append(f"- budget {budget}, {r['subject']}: cross / within: {ratios}; best manifold tracker across people "
-                       f"{best} {error(r, best):.1f} mm, {error(r, best) / error(own, best):.2f}x its within-subject error")
+                       f"{best} {error(r, best):.1f} mm, {error(r, best) / error(own, best):.2f}x its within-subject error "
+                       f"({error(r, best) / error(own, best_own):.2f}x the best within-subject one, {best_own} "
+                       f"{error(own, best_own):.1f} mm)")
         drifting = [f"{r['subject']} {r['mode']} {m} {e['last_over_first_quarter']:.2f}" for r in rows if r["budget"] == budget
                     for m, e in r["methods"].items() if e["last_over_first_quarter"] > 1.3]
         out.append(f"- budget {budget}: drift over 1.3: " + ("; ".join(drifting) if drifting else "none"))
