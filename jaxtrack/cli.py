@@ -394,6 +394,8 @@ def _protocol(args) -> int:
         fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold, **_spec_fields(args),
     )
     protocol = get_protocol(args.name)
+    if args.without:
+        protocol = protocol.without(*args.without)
     if args.subjects:
         for subject in args.subjects:
             protocol.subject(subject)  # unknown names refused before any work
@@ -840,6 +842,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="cross: the test subject left out of training; within: trained on its own other takes "
                                "(default: both)")
     protocol.add_argument("--subjects", nargs="+", help="test subjects (default: each in turn)")
+    protocol.add_argument("--without", nargs="+", metavar="SUBJECT",
+                          help="drop these subjects from the whole protocol: its cross folds on the others are where a "
+                               "setting for them is chosen without their motion (nested validation)")
     protocol.add_argument("--views", type=_at_least(1, 64), default=3, help="cameras (default: %(default)s)")
     protocol.add_argument("--image-size", type=_image_size, default=(80, 60), metavar="WxH",
                           help="the test views' size in pixels (default: 80x60)")

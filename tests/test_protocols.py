@@ -56,6 +56,11 @@ def test_a_subject_without_a_validation_take_says_so():
         protocol.fold("cross", "c")
     with pytest.raises(ConfigurationError, match="fold mode"):
         protocol.fold("sideways", "a")
+    nested = PROTOCOLS["walk-loso"].without("cmu07")
+    assert [s.name for s in nested.subjects] == ["cmu16", "cmu35"] and nested.name == "walk-loso-without-cmu07"
+    assert not any(t.subject == "cmu07" for f in nested.folds() for t in (*f.train, *f.validation, f.test))
+    with pytest.raises(ConfigurationError, match="keeps 1 subject"):
+        protocol.without("a")
     with pytest.raises(ConfigurationError, match="take name is used twice"):
         SubjectProtocol("q", "", (ProtocolSubject("a", take("a", "x"), (take("a", "y"),)),
                                   ProtocolSubject("b", take("b", "x"), (take("b", "z"),))))

@@ -152,6 +152,17 @@ class SubjectProtocol:
                         f"validation: the training take {test.train[0].name} ({subject} has no third take)")
         raise ConfigurationError(f"fold mode must be one of {FOLD_MODES}, got {mode!r}")
 
+    def without(self, *subjects: str) -> SubjectProtocol:
+        """The protocol on the other subjects only: its cross folds are the nested validation of
+        a setting for ``subjects`` (chosen there, the setting never saw their motion)."""
+        for name in subjects:
+            self.subject(name)
+        kept = tuple(s for s in self.subjects if s.name not in subjects)
+        if len(kept) < 2:
+            raise ConfigurationError(f"protocol {self.name!r} without {', '.join(subjects)} keeps {len(kept)} subject; "
+                                     "a protocol needs two or more")
+        return dataclasses.replace(self, name=f"{self.name}-without-{'-'.join(subjects)}", subjects=kept)
+
     def folds(self, modes=FOLD_MODES, subjects=None) -> list[Fold]:
         """Every requested fold: subject by subject, each mode in turn."""
         chosen = [s.name for s in self.subjects] if subjects is None else list(subjects)
