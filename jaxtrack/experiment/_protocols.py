@@ -290,7 +290,8 @@ def nearest_pose_floor_mm(train, test) -> float:
     """How close the training motion comes to the test take, before any tracking: each test
     frame's joint angles replaced by the nearest training frame's (Euclidean, radians), on the
     test subject's skeleton with its own root, against its own pose (mm, mean over joints and
-    frames). The error a tracker confined to the training poses could not go below.
+    frames): about what a tracker confined to the training poses would score with a perfect
+    root (not a strict bound: "nearest" is in joint angles, not in millimetres).
 
     Args:
         train: sequences with ``pose``; test: a sequence with ``pose`` and its body.
