@@ -38,3 +38,20 @@ def check_finite(arr, name: str) -> None:
         raise ValueError(
             f"{name} contains a non-finite value ({arr[tuple(bad)]}) at index {tuple(int(i) for i in bad)}"
         )
+
+
+def check_key(key, name: str = "key") -> None:
+    """Raise ``TypeError`` unless ``key`` is one PRNG key: a typed key (``jax.random.key(seed)``,
+    traced ones included) or a legacy raw ``uint32[2]`` key (``jax.random.PRNGKey(seed)``)."""
+    import jax
+
+    dtype = getattr(key, "dtype", None)
+    shape = getattr(key, "shape", None)
+    if dtype is not None and jax.dtypes.issubdtype(dtype, jax.dtypes.prng_key):
+        if shape != ():
+            raise TypeError(f"{name} must be one PRNG key, got a batch of shape {shape} (vmap over the keys instead)")
+        return
+    if dtype == np.uint32 and shape == (2,):
+        return
+    shown = repr(key) if isinstance(key, (int, float, str)) else type(key).__name__
+    raise TypeError(f"{name} must be a PRNG key, e.g. jax.random.key(0); got {shown}")

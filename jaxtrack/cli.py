@@ -5,8 +5,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
+import threading
 
 
 def _demo(args) -> int:
@@ -452,6 +455,35 @@ def _video_test(args):
     return read.sequence, read.stopped
 
 
+@contextlib.contextmanager
+def _interrupt_between_chunks():
+    """Hold the first Ctrl-C until the chunk being tracked is done and saved: inside, SIGINT only
+    marks a stop, and the ``stop_here()`` this yields (called after each chunk's partial file is
+    written) raises ``KeyboardInterrupt`` then, from Python code, with no XLA program running. A
+    second Ctrl-C stops at once. Outside the main thread it changes nothing."""
+    pending = []
+
+    def stop_here():
+        if pending:
+            raise KeyboardInterrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        yield stop_here
+        return
+
+    def mark(signum, frame):
+        if pending:
+            raise KeyboardInterrupt
+        pending.append(signum)
+        print("jaxtrack: stopping once this chunk is saved (Ctrl-C again to stop now)", file=sys.stderr, flush=True)
+
+    previous = signal.signal(signal.SIGINT, mark)
+    try:
+        yield stop_here
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _track(args) -> int:
     import dataclasses
 
@@ -497,12 +529,14 @@ def _track(args) -> int:
         done = len(poses)
         save_sequence(partial, _estimate_sequence(kept.cropped(done), poses, joints))
         print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
+        stop_here()
 
     chunked = args.chunk_frames and args.chunk_frames < sequence.num_frames
-    poses, joints, info = track_sequence(
-        sequence, model, header, args.method, validation, spec, seed=args.seed, name=name,
-        chunk_frames=args.chunk_frames if chunked else None, on_chunk=save_so_far if chunked else None,
-    )
+    with _interrupt_between_chunks() if chunked else contextlib.nullcontext(lambda: None) as stop_here:
+        poses, joints, info = track_sequence(
+            sequence, model, header, args.method, validation, spec, seed=args.seed, name=name,
+            chunk_frames=args.chunk_frames if chunked else None, on_chunk=save_so_far if chunked else None,
+        )
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
     save_sequence(args.out, _estimate_sequence(kept, poses, joints))
@@ -897,7 +931,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
     track.add_argument("--chunk-frames", type=int, default=100,
                        help="track this many frames at a time and save the estimates so far to OUT.partial.npz after each "
-                            "chunk, so an interruption loses one chunk at most (the same result; 0: one pass) "
+                            "chunk, so an interruption loses one chunk at most (the same result; 0: one pass); Ctrl-C "
+                            "stops once the chunk being tracked is saved, a second Ctrl-C at once "
                             "(default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")
     track.set_defaults(run=_track)

@@ -201,6 +201,40 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
 
 
 @pytest.mark.slow
+def test_ctrl_c_during_chunked_tracking_stops_once_the_chunk_is_saved(tmp_path, capsys, monkeypatch):
+    """A real SIGINT in the middle of the second chunk: the chunk finishes, its estimates are saved,
+    and only then does ``track`` stop (status 130), with no XLA program running."""
+    import signal
+    import sys
+
+    seq = small_scene(num_frames=6)[2]
+    test = tmp_path / "walk.npz"
+    save_sequence(test, seq)
+    model = tmp_path / "m.eqx"
+    assert main(["fit", str(test), "--out", str(model), "--steps", "1"]) == 0
+    real_scan = sys.modules["jaxtrack.filters._run"]._scan
+    calls = []
+
+    def ctrl_c_in_the_second_chunk(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real_scan(*a, **k)
+
+    monkeypatch.setattr("jaxtrack.filters._run._scan", ctrl_c_in_the_second_chunk)
+    args = ["track", str(test), "--method", "sir", "--model", str(model), "--validation", str(test), "--budget", "16",
+            "--chunk-frames", "2", "--out", str(tmp_path / "cut")]
+    capsys.readouterr()
+    assert main(args) == 130
+    captured = capsys.readouterr()
+    assert "stopping once this chunk is saved" in captured.err and "interrupted" in captured.err
+    assert "4/6 frames tracked" in captured.out and "6/6" not in captured.out and len(calls) == 2
+    assert load_sequence(tmp_path / "cut.partial.npz").num_frames == 4
+    assert not (tmp_path / "cut.npz").exists()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back
+
+
+@pytest.mark.slow
 def test_track_with_a_pose_residual(tmp_path, capsys):
     """``track --residual SCALE`` runs a latent tracker with the residual (with and without
     ``--no-ground-prior``); a tracker whose state is the pose refuses it with a clear message."""
@@ -253,23 +287,6 @@ def test_a_second_call_loads_its_compiled_trackers_from_the_cache(tmp_path):
     for path in [p for p in cache.rglob("*") if p.is_file()]:
         path.unlink()
     assert run("--no-compile-cache") == [] and run(env_cache="off") == []
-
-
-@pytest.mark.parametrize("argv, words", [
-    (["demo", "--seed", str(10**23)], "a seed is a whole number from 0 to 4294967295"),
-    (["demo", "--runs", "0"], "expected a whole number from 1 up, got 0"),
-    (["scene", "in.npz", "out.npz", "--views", "0"], "expected a whole number from 1 to 64, got 0"),
-    (["scene", "in.npz", "out.npz", "--width", "100000"], "expected a whole number from 8 to 4096, got 100000"),
-    (["track", "t.npz", "--model", "m.eqx", "--validation", "v.npz", "--out", "o.npz", "--max-degenerate", "nan"],
-     "expected a number from 0 to 1, got nan"),
-    (["track", "t.npz", "--model", "m.eqx", "--validation", "v.npz", "--out", "o.npz", "--max-degenerate", "-1"],
-     "expected a number from 0 to 1, got -1"),
-])
-def test_absurd_arguments_are_refused_before_any_work(argv, words, capsys):
-    with pytest.raises(SystemExit) as exit_info:
-        main(argv)
-    assert exit_info.value.code == 2
-    assert words in capsys.readouterr().err
 
 
 def test_outputs_follow_the_umask_and_unwritable_folders_are_refused_first(tmp_path):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .._custom_types import Array, Float
+from .._custom_types import Array, Float, Shaped
 from ._skeleton import Skeleton
 
 
@@ -74,14 +74,14 @@ def global_rotation_matrices(
 
 
 def forward_kinematics(
-    skeleton: Skeleton, pose: Float[Array, "*batch dofs"]
+    skeleton: Skeleton, pose: Shaped[Array, "*batch dofs"]
 ) -> Float[Array, "*batch joints 3"]:
     """3-D joint positions (metres, world frame, Z up) of a pose or a batch of poses.
 
     Args:
         skeleton: the kinematic tree and its rest offsets.
         pose: pose vector(s) laid out as ``skeleton.pose_layout``; any leading batch axes
-            (frames, particles) are kept.
+            (frames, particles) are kept. Integer poses are computed in the default float type.
 
     Returns:
         Joint positions, root first, in ``skeleton.joint_names`` order.
@@ -90,6 +90,9 @@ def forward_kinematics(
         raise ValueError(
             f"pose has {pose.shape[-1]} entries per vector, the skeleton needs {skeleton.num_dofs}"
         )
+    pose = jnp.asarray(pose)
+    if not jnp.issubdtype(pose.dtype, jnp.floating):  # integer poses: the offsets must not be truncated
+        pose = pose.astype(jnp.result_type(float))
     rotations = global_rotation_matrices(skeleton, pose)
     offsets = skeleton.offsets.astype(pose.dtype)
     positions = [None] * skeleton.num_joints

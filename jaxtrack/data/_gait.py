@@ -244,6 +244,9 @@ def generate_motion(
     Returns:
         A ``SyntheticMotion`` with pose vectors and joint positions (metres, Z up).
     """
+    if not isinstance(gait, str):
+        raise TypeError(f"generate_motion's first argument is the gait's name ({', '.join(sorted(GAITS))}), got "
+                        f"{type(gait).__name__}; pass a PRNG key as key=...")
     if gait not in GAITS:
         raise ValueError(f"unknown gait {gait!r}; choose one of {sorted(GAITS)}")
     if isinstance(subject, str):

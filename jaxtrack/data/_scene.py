@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._validation import check_key
 from ..body import check_poses
 from ..camera import CameraRig, check_in_front, image_shape, pixel_grid, project_points
 from ..io import Sequence
@@ -205,6 +206,10 @@ def build_scene(
         ValueError: if a camera is behind the body in some frame, or the body leaves a view
             entirely (empty silhouette).
     """
+    check_key(key)
+    if not isinstance(motion, SyntheticMotion):
+        raise TypeError(f"build_scene renders a SyntheticMotion (from generate_motion; data.scene_from_sequence renders a "
+                        f"sequence file's poses), got {type(motion).__name__}")
     check_poses(motion.body.skeleton, motion.pose, "motion poses")
     check_in_front(rig, motion.joints3d, what="the body")
     _height, _width = image_shape(rig)

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._custom_types import ArrayLike, Float, PRNGKeyArray
+from .._validation import check_key
 from ._base import AbstractFilter, FilterState, StepInfo
 
 
@@ -94,6 +95,7 @@ def run_filter(
     """
     if not isinstance(filter_, AbstractFilter):
         raise TypeError(f"run_filter needs an AbstractFilter, got {type(filter_).__name__}")
+    check_key(key)
     initial_pose = jnp.asarray(initial_pose)
     if initial_pose.ndim != 1:
         raise ValueError(f"initial_pose must be one pose vector (D,), got shape {initial_pose.shape}")

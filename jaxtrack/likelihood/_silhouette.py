@@ -209,9 +209,13 @@ class SilhouetteLikelihood(AbstractLikelihood):
                              f"got {observed.shape}{hint}")
         if observed.dtype == bool or jnp.issubdtype(observed.dtype, jnp.integer):
             return observed > 0
-        if not isinstance(observed, jax.core.Tracer) and observed.size and float(jnp.max(jnp.abs(observed))) > 1.0:
-            raise ValueError(f"float silhouettes must hold values in [0, 1], found up to {float(jnp.max(observed)):g} "
-                             "(0/255 masks: pass them as uint8, or through check_silhouettes)")
+        if not isinstance(observed, jax.core.Tracer) and observed.size:
+            low, high = float(jnp.min(observed)), float(jnp.max(observed))
+            if not (math.isfinite(low) and math.isfinite(high)):
+                raise ValueError("the observed silhouettes hold NaN or infinite values; a silhouette is 0 or 1 per pixel")
+            if low < 0.0 or high > 1.0:
+                raise ValueError(f"float silhouettes must hold values in [0, 1], found {low:g} to {high:g} "
+                                 "(0/255 masks: pass them as uint8, or through check_silhouettes)")
         return observed
 
     def statistics(self, poses, observed):

@@ -21,6 +21,7 @@ import numpy as np
 
 from .._custom_types import Array, Key, PRNGKeyArray
 from .._tree import cast_floating
+from .._validation import check_key
 from ..body import (
     GLOBAL_DOFS,
     HUMANEVA_JOINTS,
@@ -141,6 +142,10 @@ def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: i
         ``(model, FitInfo, training_starts)``.
     """
     recipe = get_manifold_kind(kind)
+    if not isinstance(train_poses, (list, tuple)) or not train_poses:
+        shape = f" of shape {np.shape(train_poses)}" if hasattr(train_poses, "shape") else ""
+        raise TypeError(f"train_poses must be a non-empty list of (frames, dofs) pose arrays, one per sequence; got "
+                        f"{type(train_poses).__name__}{shape} (one sequence: pass [poses])")
     angles = [joint_angles(np.asarray(p, np.float64)) for p in train_poses]
     starts = tuple(int(v) for v in np.cumsum([0] + [len(p) for p in train_poses]))
     with jax.enable_x64(True):
@@ -344,7 +349,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  start: str = "truth", start_model=None, root_height: float | None = None,
                  start_search: StartSearch | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
-    ``frames`` frames, all when None).
+    ``frames`` frames (at most the sequence's), all when None).
 
     The body (``subject_body``): ``body="auto"`` takes the file's skeleton, else the one fitted
     to its ``joints3d``, else that of a ``donors`` take of the same ``subject``, else calibrates
@@ -369,6 +374,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     at ``root_height``, before any body calibration, which then starts from it), and a file
     without ground truth is accepted (the scene's ``truth_poses`` and ``truth_joints`` are then
     None)."""
+    check_key(key)
     say = say or (lambda *a, **k: None)
     recipe = get_likelihood(likelihood)
     check_test_sequence(sequence, name, recipe.observes, truth=start == "truth")
