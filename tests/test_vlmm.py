@@ -260,9 +260,10 @@ def test_vlmmpf_tracks_and_never_leaks_nans():
 
 
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
-def test_fit_model_vlmm_stores_the_prototypes_and_automaton(tmp_path):
+def test_fit_model_vlmm_stores_the_prototypes_and_automaton(tmp_path, monkeypatch):
     """``jaxtrack fit --model vlmm``: one file holds the BC-GPLVM and the VLMM-PF's prototypes and
-    automaton; read back they are the dynamics that were fitted, and plot-latent draws them."""
+    automaton; read back they are the dynamics that were fitted, plot-latent draws them, and
+    ``track --method vlmmpf`` tracks with them without fitting prototypes again."""
     from jaxtrack.cli import main
     from jaxtrack.data import generate_motion, motion_sequence
     from jaxtrack.dynamics import vlmm_from_record, vlmm_to_record
@@ -290,3 +291,44 @@ def test_fit_model_vlmm_stores_the_prototypes_and_automaton(tmp_path):
         vlmm_from_record({**record, "version": 99}, prior)
     with pytest.raises(ValueError, match="output"):
         vlmm_from_record({**record, "output": record["output"][:-1]}, prior)
+
+    from jaxtrack.camera import default_rig
+    from jaxtrack.data import scene_from_sequence
+    from jaxtrack.io import load_sequence
+
+    def no_refit(*args, **kwargs):
+        raise AssertionError("the prototypes were fitted again")
+
+    monkeypatch.setattr("jaxtrack.tracking._vlmmpf.fit_vlmm_dynamics", no_refit)
+    test = tmp_path / "test.npz"
+    save_sequence(test, scene_from_sequence(jax.random.key(3), load_sequence(paths[0]), default_rig(num_views=2), frames=4))
+    assert main(["track", str(test), "--method", "vlmmpf", "--model", out, "--validation", paths[1], "--budget", "16",
+                 "--out", str(tmp_path / "est")]) == 0
+
+
+def test_vlmmpf_reads_the_prototypes_its_model_file_stored():
+    """``track --method vlmmpf`` on a model of ``jaxtrack fit --model vlmm``: the tracker's
+    dynamics are the stored prototypes, automaton and step scale (not refitted), with the global
+    walk's scales fitted on the validation motion; a record that does not fit the manifold is
+    refused by name."""
+    from helpers import walk_and_gpdm_prior
+
+    from jaxtrack.tracking import MotionData, fit_tracker, get_tracker
+
+    walk, prior = walk_and_gpdm_prior()
+    m, d = 2, 2 * prior.latent_dim
+    record = {"version": 1, "weights": [0.25, 0.75], "means": np.arange(m * d, dtype=float).reshape(m, d).tolist(),
+              "covariances": [np.eye(d).tolist(), (2 * np.eye(d)).tolist()], "transition": [[1, 2], [1, 2], [1, 2]],
+              "output": [[0.5, 0.5], [0.9, 0.1], [0.2, 0.8]], "initial": [1.0, 0.0, 0.0], "contexts": [[], [0], [1]],
+              "s_global": [9.0] * prior.global_dims, "step_scale": 0.7}
+    recipe = get_tracker("vlmmpf")
+    with jax.enable_x64(True):
+        dynamics = fit_tracker(recipe, jax.random.key(0), MotionData((), (walk,), prior, stored={"vlmm": record}))
+    np.testing.assert_allclose(np.asarray(dynamics.prototypes.means), record["means"])
+    np.testing.assert_allclose(np.asarray(dynamics.prototypes.weights), record["weights"])
+    np.testing.assert_array_equal(np.asarray(dynamics.vlmm.transition), record["transition"])
+    assert float(dynamics.step_scale) == pytest.approx(0.7)
+    steps = np.diff(walk[:, : prior.global_dims], axis=0)
+    np.testing.assert_allclose(np.asarray(dynamics.s_global), np.maximum(np.sqrt(np.mean(steps**2, axis=0)), 1e-3), rtol=1e-6)
+    with pytest.raises(ValueError, match="the model file's VLMM record does not fit its manifold.*means"):
+        fit_tracker(recipe, jax.random.key(0), MotionData((), (walk,), prior, stored={"vlmm": {**record, "means": [[0.0] * 3] * 2}}))

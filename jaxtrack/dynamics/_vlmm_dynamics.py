@@ -267,8 +267,10 @@ def vlmm_to_record(dynamics: VLMMDynamics) -> dict:
     }
 
 
-def vlmm_from_record(record: dict, manifold: ManifoldPrior) -> VLMMDynamics:
-    """``VLMMDynamics`` on ``manifold`` from a ``vlmm_to_record`` dict.
+def vlmm_from_record(record: dict, manifold: ManifoldPrior, validation=None, floor: float = 1e-3) -> VLMMDynamics:
+    """``VLMMDynamics`` on ``manifold`` from a ``vlmm_to_record`` dict; with ``validation`` ((T, D)
+    pose sequences), the global entries' random-walk scales are fitted on them instead of read
+    (as ``fit_vlmm_dynamics`` fits them: the experiment's and ``track``'s validation files).
 
     Raises:
         ValueError: an unknown version, a missing entry, or tables whose shapes disagree (named).
@@ -294,5 +296,8 @@ def vlmm_from_record(record: dict, manifold: ManifoldPrior) -> VLMMDynamics:
     vlmm = VLMM(transition=jnp.asarray(transition, jnp.int32), output=jnp.asarray(arrays["output"], dtype),
                 initial=jnp.asarray(arrays["initial"], dtype), contexts=tuple(tuple(int(v) for v in c) for c in record["contexts"]))
     prototypes = GaussianMixture(*(jnp.asarray(arrays[k], dtype) for k in ("weights", "means", "covariances")))
-    return VLMMDynamics(manifold=manifold, prototypes=prototypes, vlmm=vlmm, s_global=jnp.asarray(arrays["s_global"], dtype),
+    s_global = arrays["s_global"]
+    if validation is not None:
+        s_global = rms_step([s[:, :manifold.global_dims] for s in motion_sequences(validation, manifold.pose_dim)], floor)
+    return VLMMDynamics(manifold=manifold, prototypes=prototypes, vlmm=vlmm, s_global=jnp.asarray(s_global, dtype),
                         step_scale=jnp.asarray(float(record["step_scale"]), dtype))

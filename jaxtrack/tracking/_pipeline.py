@@ -154,9 +154,10 @@ def fit_manifold(train_poses: list[np.ndarray], latent_dim: int | None, steps: i
     return fitted, info, starts
 
 
-def motion_data(train_poses, validation_poses, model=None, training_starts=None) -> MotionData:
+def motion_data(train_poses, validation_poses, model=None, training_starts=None, stored=None) -> MotionData:
     """The ``MotionData`` the trackers' dynamics are fitted on (float64), with the manifold
-    ``model`` precomputed for tracking when one is given."""
+    ``model`` precomputed for tracking when one is given, and what its file ``stored`` beside it
+    (the header's ``extra``)."""
     manifold = None
     if model is not None:
         with jax.enable_x64(True):
@@ -167,6 +168,7 @@ def motion_data(train_poses, validation_poses, model=None, training_starts=None)
         manifold=manifold,
         training_starts=training_starts,
         model=model,
+        stored=dict(stored or {}),
     )
 
 
@@ -678,7 +680,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     validation_poses = validation_subject.poses
     if spec.ground_prior:
         scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton]))
-    motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts))
+    motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts), stored=header.get("extra"))
     fit_key, run_root = tracker_keys(seed, method)
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, spec.tracking_budget,
                             velocity_from=motion.validation if spec.velocity_of(method) else None,

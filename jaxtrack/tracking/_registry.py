@@ -10,7 +10,7 @@ through ``jaxtrack.experiment.run_experiment`` and, loaded with ``--plugin``, th
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -76,6 +76,10 @@ class MotionData:
             walk a model's own structure (GLE-GbPF walks a ``SpectralEmbedding``'s graph).
         training_starts: first frame of each training sequence in the manifold's data, ending
             with the total.
+        stored: what a model file stored beside its manifold (its header's ``extra``), for a
+            tracker whose dynamics were fitted with the manifold and saved with it (VLMM-PF's
+            prototypes from ``jaxtrack fit --model vlmm``); empty when the manifold was fitted
+            here.
     """
 
     training: tuple[np.ndarray, ...]
@@ -83,6 +87,7 @@ class MotionData:
     manifold: ManifoldPrior | None = None
     training_starts: tuple[int, ...] | None = None
     model: Any = None
+    stored: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def pose_dim(self) -> int:

@@ -3,12 +3,21 @@ GPLVM, moved by motion prototypes whose order a variable-length Markov model pre
 (``dynamics.VLMMDynamics``); weights from any likelihood of the library; estimate ``mu(E[x])``
 with the global entries' weighted mean."""
 
-from ..dynamics import fit_vlmm_dynamics
+from ..dynamics import fit_vlmm_dynamics, vlmm_from_record
 from ._latentpf import latent_pf_filter
 from ._registry import TrackerRecipe
 
 
 def fit(key, motion):
+    """The prototypes and automaton a model file of ``jaxtrack fit --model vlmm`` stored, read as
+    they were fitted (the global walk's scales from the validation motion); otherwise fitted on
+    the manifold's training latent points."""
+    record = motion.stored.get("vlmm")
+    if record is not None:
+        try:
+            return vlmm_from_record(record, motion.manifold, validation=list(motion.validation))
+        except ValueError as err:
+            raise ValueError(f"the model file's VLMM record does not fit its manifold: {err}") from err
     dynamics, _ = fit_vlmm_dynamics(motion.manifold, list(motion.validation), motion.training_starts, key=key)
     return dynamics
 
