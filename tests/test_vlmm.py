@@ -311,9 +311,9 @@ def test_vlmmpf_reads_the_prototypes_its_model_file_stored():
     dynamics are the stored prototypes, automaton and step scale (not refitted), with the global
     walk's scales fitted on the validation motion; a record that does not fit the manifold is
     refused by name."""
-    from helpers import walk_and_gpdm_prior
-
     from jaxtrack.tracking import MotionData, fit_tracker, get_tracker
+
+    from helpers import walk_and_gpdm_prior
 
     walk, prior = walk_and_gpdm_prior()
     m, d = 2, 2 * prior.latent_dim

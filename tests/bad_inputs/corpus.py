@@ -374,7 +374,19 @@ API_CASES: list[APICase] = [
     APICase("a random walk from one frame", lambda c: _jt().fit_pose_random_walk([np.asarray(c.sequence.pose[:1])]), ValueError,
             ("T >= 2",)),
     APICase("load_sequence of a folder", lambda c: _jt().load_sequence(c.folder), Exception, ("is a folder",)),
+    APICase("save_model of a diverged fit", lambda c: _jt().save_model(c.folder / "nan.eqx", _diverged_model()), Exception,
+            ("nan.eqx: not saved", "not finite")),
 ]
+
+
+def _diverged_model():
+    """A GPLVM whose latent points a diverged fit left NaN."""
+    import equinox as eqx
+
+    from jaxtrack.manifold import make_gplvm
+
+    model = make_gplvm(np.random.default_rng(0).normal(size=(10, 4)), 2)
+    return eqx.tree_at(lambda m: m.latent, model, model.latent * np.nan)
 
 
 def _split(key):
