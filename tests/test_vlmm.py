@@ -330,5 +330,5 @@ def test_vlmmpf_reads_the_prototypes_its_model_file_stored():
     assert float(dynamics.step_scale) == pytest.approx(0.7)
     steps = np.diff(walk[:, : prior.global_dims], axis=0)
     np.testing.assert_allclose(np.asarray(dynamics.s_global), np.maximum(np.sqrt(np.mean(steps**2, axis=0)), 1e-3), rtol=1e-6)
-    with pytest.raises(ValueError, match="the model file's VLMM record does not fit its manifold.*means"):
+    with pytest.raises(ValueError, match=r"the model file's VLMM record does not fit its manifold.*means"):
         fit_tracker(recipe, jax.random.key(0), MotionData((), (walk,), prior, stored={"vlmm": {**record, "means": [[0.0] * 3] * 2}}))
