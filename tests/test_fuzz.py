@@ -151,7 +151,10 @@ def _mutate_array(draw, value: np.ndarray):
     if kind == "transpose" and value.ndim >= 2:
         return np.swapaxes(value, 0, -1)
     if kind == "dtype":
-        return value.astype(draw(st.sampled_from([np.complex64, np.bool_, np.int8, "U3"])))
+        dtype = draw(st.sampled_from([np.complex64, np.bool_, np.int8, "U3"]))
+        if value.dtype.kind == "U" and dtype in (np.complex64, np.int8):  # NumPy cannot convert names to numbers
+            dtype = np.bool_
+        return value.astype(dtype)
     if kind == "empty":
         return value[:0] if value.ndim else np.zeros(0)
     if kind == "scalar":
@@ -226,3 +229,25 @@ def test_fuzzing_harness_catches_a_hang_and_a_foreign_error():
     with pytest.raises(TypeError):
         read_or_refuse(lambda: (_ for _ in ()).throw(TypeError("not ours")))
     assert read_or_refuse(lambda: (_ for _ in ()).throw(JaxtrackError("ours"))) is None
+
+
+LONG_FUZZ = settings(max_examples=400, deadline=None, derandomize=True, database=None,
+                     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@pytest.mark.slow  # 400 inputs per reader instead of 60: about 2-3 minutes on 2 cores
+def test_every_reader_under_a_longer_fuzz(motion_files, sequence_file, model_file):
+    """The same properties as above, each over 400 inputs drawn from other seeds than the default
+    suite's (their own test functions)."""
+    def motion_property(kind):
+        return lambda data: test_motion_readers_never_crash_hang_or_return_nonsense.hypothesis.inner_test(motion_files, kind,
+                                                                                                         data=data)
+
+    properties = [
+        *(motion_property(kind) for kind in MOTION_READERS),
+        lambda data: test_sequence_reader_refuses_every_bad_value_with_its_own_error.hypothesis.inner_test(sequence_file, data=data),
+        lambda data: test_sequence_file_bytes_never_crash_the_reader.hypothesis.inner_test(sequence_file, data=data),
+        lambda data: test_model_reader_reports_every_edit_of_the_file.hypothesis.inner_test(model_file, data=data),
+    ]
+    for prop in properties:
+        LONG_FUZZ(given(data=st.data())(prop))()

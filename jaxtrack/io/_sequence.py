@@ -324,7 +324,7 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     if "fps" not in f:
         raise SequenceFileError(f"{source}: missing required key 'fps'")
     fps = np.asarray(f["fps"])
-    if fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not (np.isfinite(fps) and fps > 0):
+    if fps.shape != () or fps.dtype.kind not in "iuf" or not (np.isfinite(fps) and fps > 0):
         _fail(source, "fps", f"must be a positive scalar, got {fps!r}")
     out: dict = {"fps": float(fps)}
     if "subject" in f:
@@ -417,7 +417,8 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
         if "camera_names" in out:
             agree("cameras", len(out["camera_names"]), "camera_names")
         for c in range(K.shape[0]):
-            if not np.allclose(R[c] @ R[c].T, np.eye(3), atol=1e-5) or np.linalg.det(R[c]) < 0:
+            # A rotation's entries lie in [-1, 1]: anything larger is refused before the product (1e300 overflows it).
+            if np.abs(R[c]).max() > 1.0 + 1e-5 or not np.allclose(R[c] @ R[c].T, np.eye(3), atol=1e-5) or np.linalg.det(R[c]) < 0:
                 _fail(source, "camera_R", f"camera {c} is not a rotation matrix")
             if K[c, 0, 0] <= 0 or K[c, 1, 1] <= 0 or not np.allclose(K[c, 2], [0, 0, 1]):
                 _fail(source, "camera_K", f"camera {c} must have positive focal lengths and last row (0, 0, 1)")

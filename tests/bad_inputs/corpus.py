@@ -241,6 +241,9 @@ CASES: list[Case] = [
          ("bad.npz", "capsule_radii", "no limb is thicker than 2 m")),
     Case("camera translations x 1e300", lambda d: _keys(d, camera_t=lambda f: f["camera_t"] * 1e300), 2,
          ("bad.npz", "camera_t", "a capture volume is not larger than 1000 m")),
+    Case("camera rotation entry 1e300", lambda d: _keys(d, camera_R=lambda f: np.where(np.arange(f["camera_R"].size).reshape(
+        f["camera_R"].shape) == 0, 1e300, f["camera_R"])), 2, ("bad.npz", "camera_R", "camera 0 is not a rotation matrix")),
+    Case("complex fps", lambda d: _keys(d, fps=np.complex64(60)), 2, ("bad.npz", "fps", "must be a positive scalar")),
     Case("fit on a frame of 1e300", _fit_with_a_huge_frame, 2, ("train.npz", "'pose'", "1e+300 at frame 3", "so not a pose")),
     # model files
     Case("model truncated", lambda d: _model(d, lambda b: b[:-50]), 2, ("bad.eqx", "truncated")),
