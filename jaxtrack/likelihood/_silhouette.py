@@ -214,7 +214,8 @@ class SilhouetteLikelihood(AbstractLikelihood):
             if not (math.isfinite(low) and math.isfinite(high)):
                 raise ValueError("the observed silhouettes hold NaN or infinite values; a silhouette is 0 or 1 per pixel")
             if low < 0.0 or high > 1.0:
-                raise ValueError(f"float silhouettes must hold values in [0, 1], found {low:g} to {high:g} "
+                found = f"up to {high:g}" if high > 1.0 else f"down to {low:g}"
+                raise ValueError(f"float silhouettes must hold values in [0, 1], found {found} "
                                  "(0/255 masks: pass them as uint8, or through check_silhouettes)")
         return observed
 
