@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -73,6 +74,7 @@ def global_rotation_matrices(
     return jnp.stack(world, axis=-3)
 
 
+@eqx.filter_jit
 def forward_kinematics(
     skeleton: Skeleton, pose: Shaped[Array, "*batch dofs"]
 ) -> Float[Array, "*batch joints 3"]:
