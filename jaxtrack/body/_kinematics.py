@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -74,7 +73,6 @@ def global_rotation_matrices(
     return jnp.stack(world, axis=-3)
 
 
-@eqx.filter_jit
 def forward_kinematics(
     skeleton: Skeleton, pose: Shaped[Array, "*batch dofs"]
 ) -> Float[Array, "*batch joints 3"]:
