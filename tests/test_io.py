@@ -37,7 +37,7 @@ def test_file_written_with_numpy_alone_loads(tmp_path):
         ({"fps": None}, "missing required key 'fps'"),
         ({"fps": -1.0}, "key 'fps'"),
         ({"joints3d": np.zeros((8, 15))}, r"key 'joints3d': must have shape \(\*, \*, 3\)"),
-        ({"joints3d": np.full((8, 15, 3), 1500.0)}, "look like millimetres"),
+        ({"joints3d": np.full((8, 15, 3), 1500.0)}, "store metres"),
         ({"joints3d": np.zeros((7, 15, 3))}, "key 'pose': has 8 frames but 'joints3d' has 7"),
         ({"pose": np.zeros((8, 31))}, "pose_layout names 32"),
         ({"camera_R": np.zeros((4, 3, 3))}, "key 'camera_R': camera 0 is not a rotation"),

@@ -318,6 +318,18 @@ def _as_float(source, key, value, ndim, trailing=()):
     return arr
 
 
+UNIT_HEIGHTS = (("inches", 30.0, 80.0), ("centimetres", 80.0, 260.0), ("millimetres", 800.0, 2600.0))  # a person's size
+
+
+def _not_metres(joints: np.ndarray) -> str:
+    """Why joint positions over 100 are not metres, with the units the person's size suggests
+    (the median over frames of the joints' largest extent along an axis)."""
+    size = float(np.median(np.ptp(joints, axis=1).max(axis=-1))) if joints.shape[1] > 1 else float("nan")
+    units = next((name for name, low, high in UNIT_HEIGHTS if low <= size <= high), None)
+    reading = f"they look like {units}" if units else "a person is 1-2.2 m tall"
+    return f"values up to {np.abs(joints).max():.0f} and a person {size:.3g} units tall: {reading}; store metres"
+
+
 def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     f = dict(fields)
     f = {k: v for k, v in f.items() if v is not None}
@@ -366,7 +378,7 @@ def _normalise_and_validate(fields: Mapping, source: str) -> Sequence:
     if "joints3d" in f:
         joints = _as_float(source, "joints3d", f["joints3d"], 3, (3,))
         if joints.size and np.abs(joints).max() > 100.0:
-            _fail(source, "joints3d", f"values up to {np.abs(joints).max():.0f} look like millimetres; store metres")
+            _fail(source, "joints3d", _not_metres(joints))
         agree("frames", joints.shape[0], "joints3d")
         agree("joints", joints.shape[1], "joints3d")
         out["joints3d"] = joints

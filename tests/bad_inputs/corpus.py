@@ -139,6 +139,14 @@ def _estimate_frames(folder: Path) -> list[str]:
     return ["render", str(folder / "scene.npz"), "--estimate", str(folder / "bad.npz"), "--out", str(folder / "picture")]
 
 
+def _joints_in(folder: Path, factor: float, name: str) -> list[str]:
+    """3-D joint positions of the small scene's walk, scaled by ``factor`` (metres -> other units)."""
+    sequence = _small_sequence(4)
+    path = folder / name
+    np.savez(path, fps=sequence.fps, joints3d=factor * np.asarray(sequence.joints3d), joint_names=np.asarray(sequence.joint_names))
+    return ["convert", str(path), str(folder / "out.npz")]
+
+
 def _fit_with_a_huge_frame(folder: Path) -> list[str]:
     path = scene_file(folder, "train.npz", pose=lambda f: np.where(np.arange(4)[:, None] == 3, 1e300, f["pose"]))
     return ["fit", str(path), "--model", "gpdm", "--steps", "3", "--out", str(folder / "m.eqx")]
@@ -221,6 +229,10 @@ CASES: list[Case] = [
     Case("BVH missing frame", lambda d: _bvh(d, lambda t: t.replace("Frames: 2", "Frames: 3")), 2, ("bad.bvh:", "header says 3 frames")),
     Case("BVH unbalanced brace", lambda d: _bvh(d, lambda t: t.replace("}\nMOTION", "}\n}\nMOTION")), 2, ("bad.bvh:", "unbalanced")),
     Case("mapping JSON", _mapping, 2, ("bad.json:2", "not valid JSON")),
+    Case("joints in centimetres", lambda d: _joints_in(d, 100.0, "walk_cm.npz"), 2,
+         ("walk_cm.npz", "joints3d", "they look like centimetres")),
+    Case("joints in millimetres", lambda d: _joints_in(d, 1000.0, "walk_mm.npz"), 2,
+         ("walk_mm.npz", "joints3d", "they look like millimetres")),
     # sequence files
     Case("text file as .npz", lambda d: _sequence_bytes(d, lambda _: b"hello world"), 2, ("bad.npz", "this file starts b'hello")),
     Case(".npy renamed .npz", lambda d: _sequence_bytes(d, _npy), 2, ("bad.npz", "single NumPy array")),
