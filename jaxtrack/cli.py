@@ -721,7 +721,7 @@ def _experiment_arguments(experiment) -> None:
     experiment.add_argument("--latent-dim", type=int,
                             help="latent dimension of every manifold (default: each tracker's own, MRPF 2, GPAPF and LatentPF 3; "
                                  "else 2 for bc-gplvm and gpdm, 3 for gle, tle, le)")
-    experiment.add_argument("--fit-steps", type=int, default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
+    experiment.add_argument("--fit-steps", type=_at_least(1), default=300, help="L-BFGS iterations of the manifold (default: %(default)s)")
     experiment.add_argument("--fit-optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
                             help="the manifold fit's L-BFGS: one evaluation per loop iteration (lbfgs, the default: compiles in "
                                  "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
@@ -751,7 +751,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run the pipeline end to end on the embedded synthetic default")
     demo.add_argument("--out", default="jaxtrack_demo", help="output folder (default: %(default)s)")
     demo.add_argument("--seed", type=_seed, default=0, help="PRNG seed (default: %(default)s)")
-    demo.add_argument("--frames", type=int, help="test frames per sequence (default: 40; 60 with --show-likelihood)")
+    demo.add_argument("--frames", type=_at_least(2), help="test frames per sequence (default: 40; 60 with --show-likelihood)")
     demo.add_argument("--budget", type=int, help="likelihood evaluations per frame (default: 300; 500 with --show-likelihood)")
     demo.add_argument("--runs", type=_at_least(1), default=2, help="runs per method (default: %(default)s)")
     demo.add_argument("--ground-prior", action=argparse.BooleanOptionalAction, default=True,
@@ -782,8 +782,8 @@ def build_parser() -> argparse.ArgumentParser:
     scene = sub.add_parser("scene", help="render a sequence's motion into synthetic multi-view silhouettes (a test sequence)")
     scene.add_argument("source", help="a sequence file with 'pose' (e.g. from 'jaxtrack convert')")
     scene.add_argument("out", nargs="?", help="output sequence file (.npz) with cameras and silhouettes (not with --video)")
-    scene.add_argument("--start", type=int, default=0, help="first frame to keep (default: %(default)s)")
-    scene.add_argument("--frames", type=int, help="frames to keep (default: to the end)")
+    scene.add_argument("--start", type=_at_least(0), default=0, help="first frame to keep (default: %(default)s)")
+    scene.add_argument("--frames", type=_at_least(1), help="frames to keep (default: to the end)")
     scene.add_argument("--width", type=_at_least(8, MAX_IMAGE_SIDE), default=80, help="image width in pixels (default: %(default)s)")
     scene.add_argument("--height", type=_at_least(8, MAX_IMAGE_SIDE), default=60, help="image height in pixels (default: %(default)s)")
     scene.add_argument("--views", type=_at_least(1, 64), default=4, help="cameras around the capture area (default: %(default)s)")
@@ -845,7 +845,7 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")
     fit.add_argument("--seed", type=_seed, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
     fit.add_argument("--latent-dim", type=int, help="latent dimension (default: the kind's own: 2 for the GP models, 3 for gle, tle, le)")
-    fit.add_argument("--steps", type=int, default=300,
+    fit.add_argument("--steps", type=_at_least(1), default=300,
                      help="L-BFGS iterations at most (default: %(default)s, as jaxtrack experiment's --fit-steps)")
     fit.add_argument("--optimiser", choices=OPTIMISERS, default=DEFAULT_OPTIMISER,
                      help="the GP models' L-BFGS (default: %(default)s, as jaxtrack experiment's --fit-optimiser)")
@@ -858,7 +858,7 @@ def build_parser() -> argparse.ArgumentParser:
                             help="validation sequence file(s): the trackers' dynamics are fitted on them (000 sec. 5.2)")
     experiment.add_argument("--test", nargs="+", required=True, help="test sequence files with silhouettes, cameras and ground truth")
     _experiment_arguments(experiment)
-    experiment.add_argument("--frames", type=int, help="track only the first FRAMES frames of each test sequence (paper: 200)")
+    experiment.add_argument("--frames", type=_at_least(1), help="track only the first FRAMES frames of each test sequence (paper: 200)")
     _spec_arguments(experiment, "every tracker", "each test sequence")
     experiment.add_argument("--no-animation", action="store_true", help="skip the overlay GIFs")
     experiment.add_argument("--out", default="jaxtrack_experiment", help="output folder (default: %(default)s)")
@@ -910,7 +910,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--keypoint-format", choices=KEYPOINT_FORMATS, default="npz", help="(default: %(default)s)")
     track.add_argument("--keypoint-layout", choices=tuple(KEYPOINT_LAYOUTS),
                        help="the detector's layout (default: body25 for openpose, coco17 for coco)")
-    track.add_argument("--frames", type=int, help="with --video: track at most this many frames")
+    track.add_argument("--frames", type=_at_least(1), help="with --video: track at most this many frames")
     track.add_argument("--fps", type=float, help="with --video of image folders: their frame rate")
     track.add_argument("--start", choices=START_CHOICES,
                        help="truth: frame 0's ground truth; auto: found from the first frame's images by an annealed search "
@@ -929,7 +929,7 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--max-degenerate", type=_fraction, default=0.0,
                        help="the largest fraction of frames on which every particle may score -inf/NaN (tracking blind) "
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
-    track.add_argument("--chunk-frames", type=int, default=100,
+    track.add_argument("--chunk-frames", type=_at_least(0), default=100,
                        help="track this many frames at a time and save the estimates so far to OUT.partial.npz after each "
                             "chunk, so an interruption loses one chunk at most (the same result; 0: one pass); Ctrl-C "
                             "stops once the chunk being tracked is saved, a second Ctrl-C at once "

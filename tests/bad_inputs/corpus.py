@@ -279,6 +279,9 @@ CASES: list[Case] = [
          ("--width", "from 8 to 4096, got 100000")),
     Case("--max-degenerate nan", _track_args("--max-degenerate", "nan"), 2, ("expected a number from 0 to 1, got nan",)),
     Case("--max-degenerate -1", _track_args("--max-degenerate", "-1"), 2, ("expected a number from 0 to 1, got -1",)),
+    Case("scene --frames 0", lambda d: ["scene", "in.npz", "out.npz", "--frames", "0"], 2, ("--frames", "from 1 up, got 0")),
+    Case("fit --steps 0", lambda d: ["fit", "in.npz", "--steps", "0", "--out", "m.eqx"], 2, ("--steps", "from 1 up, got 0")),
+    Case("--chunk-frames -1", _track_args("--chunk-frames", "-1"), 2, ("--chunk-frames", "from 0 up, got -1")),
     Case("--out under /proc", lambda d: ["scene", str(scene_file(d)), "/proc/x.npz"], 2, ("/proc", "cannot write files")),
     # valid after all, or refused only once the files are read (these fit a model first: slow)
     Case("pose truncated to integers", lambda d: _track_with(d, scene_file(d, "trunc.npz", pose=lambda f: np.trunc(f["pose"]))), 2,
