@@ -306,7 +306,8 @@ def main():
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "manifold": config.manifold_of(m), "latent_dim": config.latent_dim_of(m),
-                                    "velocity": config.velocity_of(m), "residual": config.residual_of(m)} for m in args.methods},
+                                    "velocity": config.velocity_of(m), "residual": config.residual_of(m),
+                                    "residual_decay": config.residual_decay_of(m)} for m in args.methods},
                 })
             write_json(rows, args.json)
             jax.clear_caches()  # every experiment compiles its own trackers (see real_motion.py)

@@ -242,7 +242,8 @@ def main():
                                     "per_frame_error_mm": per_method[m]["per_frame_error_mm"],
                                     "per_frame_error_mm_per_run": per_method[m]["per_frame_error_mm_per_run"],
                                     "velocity": config.velocity_of(m), "manifold": config.manifold_of(m),
-                                    "latent_dim": config.latent_dim_of(m), "residual": config.residual_of(m)}
+                                    "latent_dim": config.latent_dim_of(m), "residual": config.residual_of(m),
+                                    "residual_decay": config.residual_decay_of(m)}
                                 for m in args.methods},
                 })
                 write_json(rows, args.json)

@@ -131,7 +131,8 @@ def main():
                         recipe = get_tracker(method)
                         tracker = build_tracker(recipe, fitted[method], scene.likelihood, config.tracking_budget,
                                                 velocity_from=validation_poses if config.velocity_of(method) else None,
-                                                residual_from=validation_poses, residual_scale=config.residual_of(method))
+                                                residual_from=validation_poses, residual_scale=config.residual_of(method),
+                                                residual_decay=config.residual_decay_of(method))
                         keys = jax.numpy.stack([jax.random.fold_in(roots[method], r) for r in range(args.runs)])
                         _, joints, _ = track_runs(tracker, keys, scene)
                         errors = [float(mean_joint_error_mm(j, scene.truth_joints)) for j in joints]

@@ -621,6 +621,17 @@ def _fraction(text: str) -> float:
     return value
 
 
+def _decay_factor(text: str) -> float:
+    """An argparse type: a factor per frame, above 0 and at most 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 < value <= 1.0:  # NaN fails both comparisons
+        raise argparse.ArgumentTypeError(f"expected a number above 0 and at most 1, got {text}")
+    return value
+
+
 def _resolution(text: str) -> tuple[int, int]:
     try:
         width, height = (int(v) for v in text.lower().split("x"))
@@ -633,7 +644,8 @@ def _residual_help(whose: str) -> str:
     from .tracking import available_trackers, get_tracker
 
     owners = [n for n in available_trackers() if get_tracker(n).residual is not None]
-    defaults = ", ".join(f"{n} {get_tracker(n).residual:g}" for n in owners)
+    defaults = ", ".join(f"{n} {r.residual:g}" + (f" fading by {r.residual_decay:g} a frame" if r.residual and r.residual_decay < 1 else "")
+                         for n, r in ((n, get_tracker(n)) for n in owners))
     return (f"give {whose} whose pose is decoded from a latent point ({', '.join(owners)}) an off-manifold pose residual "
             f"that walks with SCALE times the pose random walk's steps (0: none) (default: each tracker's own: {defaults})")
 
@@ -996,6 +1008,9 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
                              "of the pose or latent point where the dynamics support it) fitted on the validation motion "
                              f"(default: each tracker's own: {_velocity_defaults()})")
     parser.add_argument("--residual", type=float, metavar="SCALE", help=_residual_help(whose))
+    parser.add_argument("--residual-decay", type=_decay_factor, metavar="D",
+                        help="the residual's factor per frame, r_t = D r_(t-1) + noise: 1 a random walk, below 1 it fades "
+                             "back to the manifold (default: each tracker's own with its own residual, 1 with --residual)")
 
 
 def _spec_fields(args) -> dict:
@@ -1010,7 +1025,7 @@ def _spec_fields(args) -> dict:
         "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
         "body": _body_choice(args), "height": args.height, "resolution": args.resolution,
         "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
-        "velocity": args.velocity, "residual": args.residual,
+        "velocity": args.velocity, "residual": args.residual, "residual_decay": args.residual_decay,
     }
 
 

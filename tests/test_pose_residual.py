@@ -76,9 +76,16 @@ def test_fit_and_bad_input(gpdm, walk):
         fitted.init(jax.random.key(0), jnp.zeros(20), 3)
     with pytest.raises(ConfigurationError, match="residual must be a scale >= 0"):
         ExperimentConfig(methods=("glegbpf",), residual=-0.5)
+    for decay in (0.0, 1.01, float("nan")):
+        with pytest.raises(ConfigurationError, match="residual_decay must be a number in"):
+            ExperimentConfig(methods=("glegbpf",), residual=0.1, residual_decay=decay)
+    assert fit_pose_residual(gpdm, walk[45:], 0.5, decay=0.9).decay == 0.9
     config = ExperimentConfig(methods=("sir", "latentpf", "glegbpf"), residual=1.5)
     assert [config.residual_of(m) for m in config.methods] == [0.0, 1.5, 1.5]  # SIR's state is the pose
-    assert ExperimentConfig(methods=("latentpf",)).residual_of("latentpf") == 0.0  # off by default
+    assert [config.residual_decay_of(m) for m in config.methods] == [1.0, 1.0, 1.0]  # a named residual walks
+    default = ExperimentConfig(methods=("latentpf", "glegbpf", "vlmmpf"))  # a fading start by default
+    assert [(default.residual_of(m), default.residual_decay_of(m)) for m in default.methods] == [(0.05, 0.9), (0.05, 0.9), (0.0, 1.0)]
+    assert ExperimentConfig(methods=("glegbpf",), residual_decay=0.5).residual_decay_of("glegbpf") == 0.5
 
 
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
@@ -127,3 +134,27 @@ def test_build_tracker_wraps_the_residual_inside_the_velocity(gpdm, walk):
     assert isinstance(wrapped.dynamics, StateVelocity) and isinstance(wrapped.dynamics.inner, PoseResidual)
     assert eqx.tree_equal(wrapped.dynamics.inner.inner, plain.dynamics.inner)
     assert wrapped.dynamics.inner.scales.dtype == jnp.float32
+
+
+def test_a_decaying_residual_is_an_ar1_process_that_fades_to_the_manifold(getkey):
+    """With ``decay`` d the residual draws ``d r + N(0, scales^2)`` and its density is that
+    Gaussian's; the start is still the given pose (the residual is its offset)."""
+    from jaxtrack.dynamics import PoseRandomWalk
+
+    inner = PoseRandomWalk(jnp.full(32, 0.01))
+    scales = jnp.linspace(0.005, 0.03, 26)
+    dynamics = PoseResidual(inner, scales, 0.8)
+    offset = jnp.linspace(-0.3, 0.3, 26)
+    start = jnp.concatenate([jnp.zeros((20000, 32)), jnp.broadcast_to(offset, (20000, 26))], axis=1)
+    drawn, _ = dynamics.propose(getkey(), start)
+    residual = np.asarray(drawn[:, 32:])
+    np.testing.assert_allclose(residual.mean(0), 0.8 * np.asarray(offset), atol=4 * 0.03 / np.sqrt(20000))
+    np.testing.assert_allclose(residual.std(0), scales, rtol=0.03)
+    walk = -0.5 * np.sum(((residual[:3] - 0.8 * np.asarray(offset)) / np.asarray(scales)) ** 2, axis=1)
+    expected = np.asarray(inner.log_transition(start[:3, :32], drawn[:3, :32])) + walk
+    np.testing.assert_allclose(dynamics.log_transition(start[:3], drawn[:3]), expected, rtol=1e-5)
+    pose = jnp.zeros(32).at[6:].set(offset)
+    np.testing.assert_array_equal(dynamics.to_pose(dynamics.init(getkey(), pose, 2)), np.broadcast_to(pose, (2, 32)))
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="decay must be a number in"):
+            PoseResidual(inner, scales, bad)

@@ -335,10 +335,10 @@ def test_every_paper_tracker_tracking_blind_leaks_no_nans():
                 model, _, starts = fit_manifold(train_poses, spec[1], 5, kind=spec[0])
             motions[spec] = motion_data(train_poses, validation_poses, model, starts)
         fitted = fit_tracker(recipe, key, motions[spec])
-        residuals = (0.0, 1.0) if name in ("latentpf", "glegbpf") else (0.0,)
-        for residual in residuals:
+        residuals = ((0.0, 1.0), (1.0, 0.9)) if name in ("latentpf", "glegbpf") else ((0.0, 1.0),)
+        for residual, decay in residuals:
             tracker = build_tracker(recipe, fitted, blind, Budget(40, 2), velocity_from=validation_poses if recipe.velocity else None,
-                                    residual_from=validation_poses, residual_scale=residual)
+                                    residual_from=validation_poses, residual_scale=residual, residual_decay=decay)
             state, info = run_filter(tracker, jax.random.key(1), scene.initial_pose, scene.observations)
             label = f"{name}, residual {residual}"
             assert bool(np.all(np.asarray(info.degenerate))), label

@@ -17,12 +17,17 @@ posture, another capture's conventions), found by the likelihood as a pose-space
 a pose. ``r_0`` is the initial pose's residual from its manifold point, so the filter starts at
 the given pose, not at its projection.
 
+With ``decay`` below 1 the residual is an AR(1) process, ``r_t = decay r_{t-1} + N(0,
+diag(s_r^2))``: it starts at the given pose's offset and fades back onto the manifold (the
+latent trackers' default "fading start", ``tracking.FADING_START``).
+
 The wrapped dynamics are untouched, so the transition density is the product of theirs and
 the residual walk's (gradient-refined moves work), and ``scale = 0`` leaves them as they were.
 """
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,10 +55,13 @@ class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
         inner: the wrapped dynamics (any ``AbstractDynamics``; meant for those whose pose is
             decoded from a latent point).
         scales: (A,) standard deviation of the residual's step per joint angle (radians).
+        decay: the residual's factor per frame, ``r_t = decay r_{t-1} + N(0, diag(scales^2))``
+            (1: a random walk; below 1 it fades back to the manifold, an AR(1) process).
     """
 
     inner: AbstractDynamics
     scales: Float[Array, " angles"]
+    decay: float = eqx.field(static=True, default=1.0)
 
     def __check_init__(self):
         if not isinstance(self.inner, AbstractDynamics):
@@ -61,6 +69,8 @@ class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
         if isinstance(self.inner, PoseResidual):
             raise ValueError("the dynamics already carries a pose residual")
         check_scale_vector("scales", self.scales, None)
+        if isinstance(self.decay, bool) or not isinstance(self.decay, (int, float)) or not 0 < self.decay <= 1:
+            raise ValueError(f"the residual's decay must be a number in (0, 1], got {self.decay!r}")
 
     @property
     def size(self) -> int:
@@ -86,7 +96,7 @@ class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
         inner_key, residual_key = jax.random.split(key)
         inner, residual = self._split(previous)
         moved, correction = self.inner.propose(inner_key, inner)
-        return jnp.concatenate([moved, gaussian_step(residual_key, residual, self.scales)], axis=1), correction
+        return jnp.concatenate([moved, gaussian_step(residual_key, self.decay * residual, self.scales)], axis=1), correction
 
     def perturb(self, key, states, factor):
         inner_key, residual_key = jax.random.split(key)
@@ -100,14 +110,16 @@ class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
     def log_transition(self, previous, states):
         inner_previous, residual_previous = self._split(previous)
         inner, residual = self._split(states)
-        return self.inner.log_transition(inner_previous, inner) + gaussian_log_density(residual, residual_previous, self.scales)
+        walk = gaussian_log_density(residual, self.decay * residual_previous, self.scales)
+        return self.inner.log_transition(inner_previous, inner) + walk
 
     def noise_scales(self):
         inner = self.inner.noise_scales()
         return jnp.concatenate([inner, self.scales.astype(inner.dtype)])
 
 
-def fit_pose_residual(dynamics: AbstractDynamics, validation, scale: float, *, floor: float = 1e-3) -> PoseResidual:
+def fit_pose_residual(dynamics: AbstractDynamics, validation, scale: float, *, floor: float = 1e-3,
+                      decay: float = 1.0) -> PoseResidual:
     """``dynamics`` with a residual whose step scales are ``scale`` times the RMS frame-to-frame
     step of the validation poses' joint angles (one (T, D) array or a list of them): the pose
     random walk's steps, what SIR diffuses by.
@@ -122,4 +134,4 @@ def fit_pose_residual(dynamics: AbstractDynamics, validation, scale: float, *, f
     if sequences[0].shape[1] <= GLOBAL_DOFS:
         raise ValueError(f"poses need joint angles after the {GLOBAL_DOFS} global entries, got {sequences[0].shape[1]} entries")
     steps = scale * rms_step(sequences, floor)[GLOBAL_DOFS:]
-    return PoseResidual(dynamics, jnp.asarray(steps, jnp.float64))
+    return PoseResidual(dynamics, jnp.asarray(steps, jnp.float64), decay)

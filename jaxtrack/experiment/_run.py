@@ -256,7 +256,7 @@ def _record_dynamics(tracker, method: str, config: ExperimentConfig, results: di
     """The fitted residual and velocity of a built tracker, in results (once per method)."""
     if config.residual_of(method) and method not in results["residual"]:
         carrier = tracker.dynamics.inner if with_velocity else tracker.dynamics
-        results["residual"][method] = {"scale": config.residual_of(method),
+        results["residual"][method] = {"scale": config.residual_of(method), "decay": config.residual_decay_of(method),
                                        "step_rad": np.asarray(carrier.scales, np.float64).round(6).tolist()}
     if with_velocity and method not in results["velocity"]:
         moving = tracker.dynamics
@@ -287,7 +287,8 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
         for method in methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
             tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
-                                    residual_from=validation_poses, residual_scale=config.residual_of(method))
+                                    residual_from=validation_poses, residual_scale=config.residual_of(method),
+                                    residual_decay=config.residual_decay_of(method))
             _record_dynamics(tracker, method, config, results, velocity_from is not None)
             _, run_root = tracker_keys(config.seed, method)
             errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None

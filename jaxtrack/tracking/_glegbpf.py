@@ -8,7 +8,7 @@ and is left behind on a jog: 97 against 26 mm on the demo's S2 jog)."""
 from ..dynamics import fit_gle_graph_walk
 from ..filters import SIR
 from ..manifold import SpectralEmbedding
-from ._registry import TrackerRecipe
+from ._registry import FADING_START, TrackerRecipe
 
 
 def fit(key, motion):
@@ -24,4 +24,5 @@ def build(dynamics, likelihood, budget):
 
 
 RECIPE = TrackerRecipe("glegbpf", "GLE-GbPF", "graph-based particle filter on a Generalised Laplacian Eigenmap (002 Alg. 1)",
-                       fit, build, needs_manifold=True, manifold="gle", velocity=True, residual=0.0)
+                       fit, build, needs_manifold=True, manifold="gle", velocity=True,
+                       residual=FADING_START[0], residual_decay=FADING_START[1])

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 from ..dynamics import LatentRandomWalk, as_scale_vector, fit_latent_dynamics
 from ..filters import SIR, make_estimator
 from ..manifold import ManifoldPrior
-from ._registry import TrackerRecipe
+from ._registry import FADING_START, TrackerRecipe
 from ._sir import sir_filter
 
 
@@ -49,4 +49,5 @@ def build(dynamics, likelihood, budget):
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("latentpf", "LatentPF", "Condensation in the latent space of the manifold (003 Alg. 2)", fit, build,
-                       needs_manifold=True, manifold="gpdm", velocity=True, latent_dim=LATENT_DIM, residual=0.0)
+                       needs_manifold=True, manifold="gpdm", velocity=True, latent_dim=LATENT_DIM,
+                       residual=FADING_START[0], residual_decay=FADING_START[1])

@@ -182,7 +182,8 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
                   velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None,
-                  residual_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None, residual_scale: float = 0.0):
+                  residual_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None, residual_scale: float = 0.0,
+                  residual_decay: float = 1.0):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
     With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
@@ -194,7 +195,8 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
 
     With ``residual_scale`` > 0 the dynamics (inside the velocity) carry an off-manifold pose
     residual (``jaxtrack.dynamics.PoseResidual``) whose steps are ``residual_scale`` times the
-    RMS joint-angle steps of the ``residual_from`` poses.
+    RMS joint-angle steps of the ``residual_from`` poses, and which fades by ``residual_decay`` a
+    frame (1: a random walk).
 
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``), given by the filter's
@@ -211,7 +213,8 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
         if residual_from is None:
             raise ValueError(f"a pose residual for {recipe.label} needs validation poses to fit it on")
         with jax.enable_x64(True):
-            residual = fit_pose_residual(tracker.dynamics, [np.asarray(p, np.float64) for p in residual_from], residual_scale)
+            residual = fit_pose_residual(tracker.dynamics, [np.asarray(p, np.float64) for p in residual_from], residual_scale,
+                                         decay=residual_decay)
         tracker = tracker.with_dynamics(cast_floating(residual, TRACKING_DTYPE))
     if velocity_from is not None:
         velocity = fit_velocity(tracker.dynamics, velocity_from)
@@ -684,5 +687,6 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     fit_key, run_root = tracker_keys(seed, method)
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, spec.tracking_budget,
                             velocity_from=motion.validation if spec.velocity_of(method) else None,
-                            residual_from=motion.validation, residual_scale=spec.residual_of(method))
+                            residual_from=motion.validation, residual_scale=spec.residual_of(method),
+                            residual_decay=spec.residual_decay_of(method))
     return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)

@@ -21,6 +21,12 @@ from ..manifold import ManifoldPrior, get_manifold_kind, manifold_kinds
 # A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
 # 2 CPU cores (benchmarks/bench_gradient.py).
 GRADIENT_COST = 50.0
+# The latent trackers' default pose residual, a fading start: scale 0.05 of the pose random walk's
+# steps and a factor of 0.9 a frame, so the filter starts at the given pose (not at its
+# projection onto the manifold) and is back on the manifold within 20-30 frames (docs/gle.md,
+# "Starting off the manifold": frame 0 at 8-22 mm instead of 32-64 across people, the rest
+# unchanged).
+FADING_START = (0.05, 0.9)
 @dataclasses.dataclass(frozen=True)
 class Budget:
     """Likelihood evaluations per frame, the annealing layers they may be split into, and the
@@ -127,6 +133,9 @@ class TrackerRecipe:
             an off-manifold pose residual (``dynamics.PoseResidual``; 0: none) unless the
             experiment names one for every such tracker; None for a tracker whose state holds
             the pose itself (or whose estimate projects onto the manifold), which takes none.
+        residual_decay: that default residual's factor per frame (``PoseResidual.decay``; 1: a
+            random walk; below 1 a fading start: the filter starts at the given pose and fades
+            onto its manifold).
     """
 
     name: str
@@ -142,6 +151,7 @@ class TrackerRecipe:
     min_layers: int = 1
     latent_dim: int | None = None
     residual: float | None = None
+    residual_decay: float = 1.0
 
     def __post_init__(self):
         check_name("tracker", self.name)
@@ -154,6 +164,8 @@ class TrackerRecipe:
                              f"registered manifold kinds ({', '.join(known)}), the first among the second")
         if self.residual is not None and not (np.isfinite(self.residual) and self.residual >= 0):
             raise ValueError(f"tracker {self.name!r}: residual must be a scale >= 0 or None, got {self.residual!r}")
+        if not 0 < self.residual_decay <= 1:
+            raise ValueError(f"tracker {self.name!r}: residual_decay must be in (0, 1], got {self.residual_decay!r}")
         if self.latent_dim is not None and (isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int)
                                             or self.latent_dim < 1):
             raise ValueError(f"tracker {self.name!r}: latent_dim must be a positive integer or None, got {self.latent_dim!r}")
@@ -199,6 +211,13 @@ class TrackerRecipe:
         if self.residual is None:
             return 0.0
         return self.residual if requested is None else float(requested)
+
+    def residual_decay_for(self, requested_scale: float | None, requested_decay: float | None) -> float:
+        """The decay of this tracker's pose residual: ``requested_decay`` if given; else its own
+        with its own scale (``requested_scale`` None), and 1 (a random walk) with a requested one."""
+        if requested_decay is not None:
+            return float(requested_decay)
+        return self.residual_decay if requested_scale is None else 1.0
 
     def check_budget(self, budget: Budget) -> None:
         """Raise ``ValueError`` if this tracker cannot spend ``budget``."""

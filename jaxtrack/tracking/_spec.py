@@ -80,6 +80,10 @@ class TrackingSpec:
         residual: the scale of the off-manifold pose residual of every tracker whose pose is
             decoded from a latent point (``jaxtrack.dynamics.PoseResidual``; 0: none), relative
             to the pose random walk's steps; None: each tracker's own (``TrackerRecipe.residual``).
+        residual_decay: that residual's factor per frame (``dynamics.PoseResidual.decay``): 1, a
+            random walk; below 1 it fades back to the manifold, so the filter starts at the given
+            pose and ends on its manifold. None: with each tracker's own residual its own decay
+            (``TrackerRecipe.residual_decay``), with a ``residual`` named 1.
         start: where ``track_sequence`` starts (``tracking.START_CHOICES``): "truth" (frame 0's
             ground truth) or "auto" (``tracking.automatic_start``: found from the first frame's
             images on the model's latent space; no ground truth needed).
@@ -108,6 +112,7 @@ class TrackingSpec:
     ground_prior: bool = True
     velocity: bool | None = None
     residual: float | None = None
+    residual_decay: float | None = None
     start: str = "truth"
 
     def __post_init__(self):
@@ -135,6 +140,9 @@ class TrackingSpec:
         if self.residual is not None and (isinstance(self.residual, bool) or not isinstance(self.residual, (int, float))
                                           or not (math.isfinite(self.residual) and self.residual >= 0)):
             raise ConfigurationError(f"residual must be a scale >= 0 or None (each tracker's own), got {self.residual!r}")
+        if self.residual_decay is not None and (isinstance(self.residual_decay, bool)
+                                                or not isinstance(self.residual_decay, (int, float)) or not 0 < self.residual_decay <= 1):
+            raise ConfigurationError(f"residual_decay must be a number in (0, 1], got {self.residual_decay!r}")
         if self.manifold is not None and self.manifold not in manifold_kinds(trackable=True):
             raise ConfigurationError(f"manifold must be one of {manifold_kinds(trackable=True)} or None (each tracker's own), "
                                      f"got {self.manifold!r}")
@@ -192,6 +200,10 @@ class TrackingSpec:
     def residual_of(self, method: str) -> float:
         """The scale of tracker ``method``'s off-manifold pose residual (0: none)."""
         return get_tracker(method).residual_for(self.residual)
+
+    def residual_decay_of(self, method: str) -> float:
+        """The factor per frame of tracker ``method``'s pose residual (1: a random walk)."""
+        return get_tracker(method).residual_decay_for(self.residual, self.residual_decay)
 
     def latent_dim_of(self, method: str) -> int | None:
         """The latent dimension of tracker ``method``'s manifold (None if it needs none)."""

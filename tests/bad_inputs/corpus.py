@@ -282,6 +282,7 @@ CASES: list[Case] = [
     Case("scene --frames 0", lambda d: ["scene", "in.npz", "out.npz", "--frames", "0"], 2, ("--frames", "from 1 up, got 0")),
     Case("fit --steps 0", lambda d: ["fit", "in.npz", "--steps", "0", "--out", "m.eqx"], 2, ("--steps", "from 1 up, got 0")),
     Case("--chunk-frames -1", _track_args("--chunk-frames", "-1"), 2, ("--chunk-frames", "from 0 up, got -1")),
+    Case("--residual-decay 0", _track_args("--residual-decay", "0"), 2, ("--residual-decay", "above 0 and at most 1, got 0")),
     Case("--out under /proc", lambda d: ["scene", str(scene_file(d)), "/proc/x.npz"], 2, ("/proc", "cannot write files")),
     # valid after all, or refused only once the files are read (these fit a model first: slow)
     Case("pose truncated to integers", lambda d: _track_with(d, scene_file(d, "trunc.npz", pose=lambda f: np.trunc(f["pose"]))), 2,
