@@ -171,11 +171,11 @@ def _fit(args) -> int:
     if args.model == "spm-gplvm":
         return _fit_spm(args)
     with_vlmm = args.model == "vlmm"  # 004: a BC-GPLVM, its prototypes and their automaton in one file
-    kind = get_manifold_kind("bc-gplvm" if with_vlmm else args.model)
+    kind = get_manifold_kind(args.vlmm_manifold if with_vlmm else args.model)
     options = _options(args.manifold_option, kind.options, f"manifold kind {kind.name!r}")
     if args.inducing is not None:
         if "num_inducing" not in kind.options:
-            raise ValueError(f"--inducing is an option of sparse-gplvm, not of {kind.name}")
+            raise ValueError(f"--inducing is an option of sparse-gplvm and sparse-bc-gplvm, not of {kind.name}")
         options["num_inducing"] = args.inducing
     poses, names, layouts = [], [], set()
     for path in args.motion:
@@ -848,13 +848,17 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--model", choices=[*manifold_kinds(), "vlmm", "spm-gplvm"], default="bc-gplvm",
                      help="a registered manifold kind: " + "; ".join(f"{k}: {get_manifold_kind(k).description}"
                                                                     for k in manifold_kinds())
-                     + "; vlmm: a bc-gplvm (3-D unless --latent-dim) with paper 004's motion prototypes and VLMM "
+                     + "; vlmm: a bc-gplvm (--vlmm-manifold; 3-D unless --latent-dim) with paper 004's motion prototypes and VLMM "
                        "fitted on it and stored in the same file; spm-gplvm: paper 003's active-set GPLVM of the motion's "
                        "3-D joints seen from the view sphere as scaled-prismatic-model poses, for track2d (options "
                        "active=200, every=3, iterations=3) (default: %(default)s)")
     fit.add_argument("--manifold-option", action="append", metavar="KEY=VALUE",
                      help="an option of the manifold kind's maker (e.g. num_inducing=100 for sparse-gplvm)")
-    fit.add_argument("--inducing", type=int, help="inducing points of sparse-gplvm (default: 150, at most one per frame)")
+    fit.add_argument("--inducing", type=_at_least(1), help="inducing points of sparse-gplvm and sparse-bc-gplvm (default: 150, at "
+                                                                   "most one per frame)")
+    fit.add_argument("--vlmm-manifold", choices=("bc-gplvm", "sparse-bc-gplvm"), default="bc-gplvm",
+                     help="the manifold of --model vlmm: 004 fits a sparse-bc-gplvm (default: %(default)s, as jaxtrack "
+                          "experiment's vlmmpf)")
     fit.add_argument("--seed", type=_seed, default=0, help="PRNG seed for the MLP back-constraint's weights (default: %(default)s)")
     fit.add_argument("--latent-dim", type=int, help="latent dimension (default: the kind's own: 2 for the GP models, 3 for gle, tle, le)")
     fit.add_argument("--steps", type=_at_least(1), default=300,

@@ -376,7 +376,8 @@ def test_cmu_walk_and_jog_manifold(shared_data):
 def test_every_model_is_an_abstract_manifold_in_the_registry(walk_jog):
     from jaxtrack.manifold import MANIFOLD_CLASSES, AbstractManifold, ManifoldPrior, make_manifold_prior, register_manifold
 
-    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "BCGPDM", "SparseGPLVM", "SpectralEmbedding", "ActiveSetGPLVM"}
+    assert set(MANIFOLD_CLASSES) == {"GPLVM", "BCGPLVM", "GPDM", "BCGPDM", "SparseGPLVM", "SparseBCGPLVM", "SpectralEmbedding",
+                                    "ActiveSetGPLVM"}
     walk, _ = walk_jog
     Y = walk.pose[:30, 6:]
     from jaxtrack.manifold import make_active_set_gplvm

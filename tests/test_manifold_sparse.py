@@ -130,3 +130,53 @@ def test_save_load_sparse_and_mlp(walk_angles, getkey, tmp_path):
         z = jnp.ones((3, 2))
         np.testing.assert_allclose(predict(back, z)[0], predict(model, z)[0])
     assert back.back.mlp.depth == 2
+
+
+def test_sparse_bc_gplvm_is_the_sparse_bound_at_the_back_constrained_points(walk_angles, getkey):
+    """Its objective is the sparse GPLVM's at ``Z = g(Y)`` (the dense NumPy bound minus the
+    prior), it starts at the PCA points, ``g`` encodes the training poses to them, its gradient
+    matches finite differences, and it saves and loads."""
+    from jaxtrack.manifold import SparseBCGPLVM, get_manifold_kind, make_sparse_bc_gplvm
+
+    Y = walk_angles[:30]
+    model = make_sparse_bc_gplvm(Y, 2, num_inducing=6)
+    start = make_sparse_gplvm(Y, 2, num_inducing=6).latent
+    np.testing.assert_allclose(model.training_latent(), start, atol=1e-3)  # g is solved with a 1e-6 jitter
+    moved = eqx.tree_at(lambda m: (m.back.weights, m.inducing), model,
+                        (model.back.weights + 0.05 * jax.random.normal(getkey(), model.back.weights.shape),
+                         jax.random.normal(getkey(), (6, 2))))
+    Z, k = np.asarray(moved.training_latent()), moved.kernel
+    expected = numpy_bound(Z, np.asarray(moved.inducing), np.asarray(moved.data), *(float(v) for v in (k.beta, k.gamma, k.beta0, k.noise)),
+                           "vfe") - 0.5 * np.sum(Z**2)
+    assert float(moved.objective()) == pytest.approx(expected, rel=1e-9)
+    np.testing.assert_allclose(moved.encode(jnp.asarray(Y)), Z, atol=1e-10)
+    params, static = eqx.partition(moved, moved.trainable())
+    assert params.data is None and params.back.inputs is None  # the poses and g's centres are fixed
+    flat, unravel = jax.flatten_util.ravel_pytree(params)
+    f = lambda v: eqx.combine(unravel(v), static).objective()  # noqa: E731
+    finite_difference_check(f, flat, jax.random.normal(getkey(), flat.shape), rtol=1e-5, atol=1e-6)
+    kind = get_manifold_kind("sparse-bc-gplvm")
+    built = kind.build([Y[:10], Y[10:]], 3)
+    assert isinstance(built, SparseBCGPLVM) and built.inducing.shape == (30, 3) and built.latent_dim == 3  # M clipped to N
+
+
+@pytest.mark.slow
+def test_sparse_bc_gplvm_fits_saves_and_carries_vlmm_prototypes(walk_angles, getkey, tmp_path):
+    """Fitting raises the bound well above the start and keeps ``g(Y)`` on the latent points;
+    the file round-trips; 004's prototype uncertainties are computed through its ``g``."""
+    from jaxtrack.dynamics import latent_uncertainties
+    from jaxtrack.manifold import make_manifold_prior, make_sparse_bc_gplvm
+
+    Y = walk_angles
+    model = make_sparse_bc_gplvm(Y, 2, num_inducing=20)
+    fitted, info = fit_model(model, max_steps=150)
+    assert info.objective > float(model.objective()) + 100
+    recon, _ = predict(fitted, fitted.training_latent())
+    assert np.abs(np.asarray(recon) - Y).mean() < 0.05
+    path = tmp_path / "sparse_bc.eqx"
+    save_model(path, fitted)
+    back, header = load_model(path)
+    assert header["inducing"] == 20 and float(back.objective()) == pytest.approx(float(fitted.objective()), rel=1e-12)
+    with jax.enable_x64(True):
+        C = latent_uncertainties(make_manifold_prior(back, 6 + back.data_dim), getkey(), samples=50)
+    assert C.shape == (len(Y), 4, 4) and np.all(np.isfinite(C)) and np.all(np.linalg.eigvalsh(C[:, :2, :2]) > 0)

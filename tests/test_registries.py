@@ -55,7 +55,7 @@ register_manifold_kind(ManifoldKind("toy-gplvm", "a back-constrained GPLVM on ev
 
 
 def test_the_built_in_kinds_and_likelihood_are_registered():
-    assert set(manifold_kinds(trackable=True)) == {"bc-gplvm", "gpdm", "bc-gpdm", "gle", "tle", "le"}
+    assert set(manifold_kinds(trackable=True)) == {"bc-gplvm", "gpdm", "bc-gpdm", "gle", "tle", "le", "sparse-bc-gplvm"}
     assert set(manifold_kinds()) - set(manifold_kinds(trackable=True)) == {"gplvm", "bc-gplvm-mlp", "sparse-gplvm", "active-set-gplvm"}
     assert manifold_kinds(family="spectral") == ("gle", "tle", "le")
     assert get_manifold_kind("gle").latent_dim == 3 and get_manifold_kind("gpdm").latent_dim == 2

@@ -332,3 +332,29 @@ def test_vlmmpf_reads_the_prototypes_its_model_file_stored():
     np.testing.assert_allclose(np.asarray(dynamics.s_global), np.maximum(np.sqrt(np.mean(steps**2, axis=0)), 1e-3), rtol=1e-6)
     with pytest.raises(ValueError, match=r"the model file's VLMM record does not fit its manifold.*means"):
         fit_tracker(recipe, jax.random.key(0), MotionData((), (walk,), prior, stored={"vlmm": {**record, "means": [[0.0] * 3] * 2}}))
+
+
+@pytest.mark.slow
+def test_fit_model_vlmm_on_004s_sparse_bc_gplvm(tmp_path):
+    """``jaxtrack fit --model vlmm --vlmm-manifold sparse-bc-gplvm``: 004's manifold (a sparse
+    BC-GPLVM, here 20 inducing points) with the prototypes fitted through its back-constraint."""
+    from jaxtrack.cli import main
+    from jaxtrack.data import generate_motion, motion_sequence
+    from jaxtrack.dynamics import vlmm_from_record
+    from jaxtrack.io import save_sequence
+    from jaxtrack.manifold import SparseBCGPLVM, load_model, make_manifold_prior, read_header
+
+    paths = []
+    for i, gait in enumerate(("walk", "jog")):
+        path = str(tmp_path / f"{gait}.npz")
+        save_sequence(path, motion_sequence(generate_motion(gait, "S1", num_frames=40, fps=30.0, key=jax.random.key(i))))
+        paths.append(path)
+    out = str(tmp_path / "sparse.eqx")
+    assert main(["fit", *paths, "--model", "vlmm", "--vlmm-manifold", "sparse-bc-gplvm", "--inducing", "20", "--steps", "5",
+                 "--out", out]) == 0
+    header = read_header(out)
+    assert header["class"] == "SparseBCGPLVM" and header["inducing"] == 20
+    with jax.enable_x64(True):
+        model, _ = load_model(out)
+        dynamics = vlmm_from_record(header["extra"]["vlmm"], make_manifold_prior(model, 6 + model.data_dim))
+    assert isinstance(model, SparseBCGPLVM) and dynamics.prototypes.dim == 6 and dynamics.prototypes.num_components >= 1

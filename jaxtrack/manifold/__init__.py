@@ -80,6 +80,8 @@ from ._serialise import save_model as save_model
 from ._sparse import SparseGPLVM as SparseGPLVM
 from ._sparse import make_sparse_gplvm as make_sparse_gplvm
 from ._sparse import sparse_log_marginal as sparse_log_marginal
+from ._sparse_bc_gplvm import SparseBCGPLVM as SparseBCGPLVM
+from ._sparse_bc_gplvm import make_sparse_bc_gplvm as make_sparse_bc_gplvm
 from ._spectral import SPECTRAL_GRAPHS as SPECTRAL_GRAPHS
 from ._spectral import SpectralEmbedding as SpectralEmbedding
 from ._spectral import fit_gle as fit_gle

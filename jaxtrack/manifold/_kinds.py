@@ -22,6 +22,7 @@ from ._active_set import make_active_set_gplvm
 from ._bc_gpdm import make_bc_gpdm
 from ._models import make_bc_gplvm, make_gpdm, make_gplvm
 from ._sparse import make_sparse_gplvm
+from ._sparse_bc_gplvm import make_sparse_bc_gplvm
 from ._spectral import fit_spectral
 
 FAMILIES = ("gp", "spectral")
@@ -138,6 +139,11 @@ def _sparse_gplvm(sequences, latent_dim, *, key=None, num_inducing=150, **option
     return make_sparse_gplvm(poses, latent_dim, num_inducing=min(int(num_inducing), poses.shape[0]), **options)
 
 
+def _sparse_bc_gplvm(sequences, latent_dim, *, key=None, num_inducing=150, **options):
+    poses = np.concatenate(sequences)
+    return make_sparse_bc_gplvm(poses, latent_dim, num_inducing=min(int(num_inducing), poses.shape[0]), **options)
+
+
 def _active_set_gplvm(sequences, latent_dim, *, key=None, active=200, **options):
     poses = np.concatenate(sequences)
     return make_active_set_gplvm(poses, latent_dim, active=min(int(active), poses.shape[0]), **options)
@@ -168,6 +174,8 @@ for _kind in (
                  trackable=False),
     ManifoldKind("sparse-gplvm", "sparse GPLVM with inducing points (004; at most one per frame)", _sparse_gplvm,
                  options={"num_inducing": 150}, trackable=False),
+    ManifoldKind("sparse-bc-gplvm", "sparse GPLVM under 000's kernel back-constraint, 150 inducing points (004 sec. 5.1)",
+                 _sparse_bc_gplvm, options={"num_inducing": 150}),
     ManifoldKind("active-set-gplvm", "GPLVM on an IVM active set, the other points by 003 eq. 2 (003 Algorithm 1)",
                  _active_set_gplvm, options={"active": 200, "init": "isomap"}, trackable=False),
 ):

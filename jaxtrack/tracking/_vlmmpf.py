@@ -30,5 +30,5 @@ def build(dynamics, likelihood, budget):
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("vlmmpf", "VLMM-PF", "motion prototypes ordered by a variable-length Markov model (004 sec. 5)", fit,
-                       build, needs_manifold=True, manifold="bc-gplvm", manifolds=("bc-gplvm",), velocity=True,
+                       build, needs_manifold=True, manifold="bc-gplvm", manifolds=("bc-gplvm", "sparse-bc-gplvm"), velocity=True,
                        latent_dim=LATENT_DIM, residual=0.0)
