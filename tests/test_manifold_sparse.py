@@ -74,7 +74,10 @@ def test_bound_is_exact_with_all_points_and_below_otherwise(walk_angles):
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_sparse_and_mlp_gradients_match_finite_differences(walk_angles, getkey):
     Y = walk_angles[:30]
-    models = (make_sparse_gplvm(Y, 2, num_inducing=8), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, key=getkey()))
+    from jaxtrack.manifold import make_sparse_bc_gplvm
+
+    models = (make_sparse_gplvm(Y, 2, num_inducing=8), make_bc_gplvm(Y, 2, back_constraint="mlp", hidden=8, key=getkey()),
+              make_sparse_bc_gplvm(Y, 2, num_inducing=8))
     for model in models:
         params, static = eqx.partition(model, model.trainable())
         flat, unravel = jax.flatten_util.ravel_pytree(params)
@@ -134,8 +137,8 @@ def test_save_load_sparse_and_mlp(walk_angles, getkey, tmp_path):
 
 def test_sparse_bc_gplvm_is_the_sparse_bound_at_the_back_constrained_points(walk_angles, getkey):
     """Its objective is the sparse GPLVM's at ``Z = g(Y)`` (the dense NumPy bound minus the
-    prior), it starts at the PCA points, ``g`` encodes the training poses to them, its gradient
-    matches finite differences, and it saves and loads."""
+    prior), it starts at the PCA points, ``g`` encodes the training poses to them, and its kind
+    builds it with at most one inducing point per frame."""
     from jaxtrack.manifold import SparseBCGPLVM, get_manifold_kind, make_sparse_bc_gplvm
 
     Y = walk_angles[:30]
@@ -150,11 +153,8 @@ def test_sparse_bc_gplvm_is_the_sparse_bound_at_the_back_constrained_points(walk
                            "vfe") - 0.5 * np.sum(Z**2)
     assert float(moved.objective()) == pytest.approx(expected, rel=1e-9)
     np.testing.assert_allclose(moved.encode(jnp.asarray(Y)), Z, atol=1e-10)
-    params, static = eqx.partition(moved, moved.trainable())
-    assert params.data is None and params.back.inputs is None  # the poses and g's centres are fixed
-    flat, unravel = jax.flatten_util.ravel_pytree(params)
-    f = lambda v: eqx.combine(unravel(v), static).objective()  # noqa: E731
-    finite_difference_check(f, flat, jax.random.normal(getkey(), flat.shape), rtol=1e-5, atol=1e-6)
+    params, _ = eqx.partition(moved, moved.trainable())
+    assert params.data is None and params.back.inputs is None  # the poses and g's centres are fixed (gradients: the slow test)
     kind = get_manifold_kind("sparse-bc-gplvm")
     built = kind.build([Y[:10], Y[10:]], 3)
     assert isinstance(built, SparseBCGPLVM) and built.inducing.shape == (30, 3) and built.latent_dim == 3  # M clipped to N
