@@ -259,22 +259,30 @@ def test_vlmmpf_tracks_and_never_leaks_nans():
                if jnp.issubdtype(jnp.asarray(leaf).dtype, jnp.floating))
 
 
+def _walk_and_jog_files(folder) -> list[str]:
+    """Sequence files of a synthetic walk and jog (40 frames at 30 Hz each) in ``folder``."""
+    from jaxtrack.data import generate_motion, motion_sequence
+    from jaxtrack.io import save_sequence
+
+    paths = []
+    for i, gait in enumerate(("walk", "jog")):
+        path = str(folder / f"{gait}.npz")
+        save_sequence(path, motion_sequence(generate_motion(gait, "S1", num_frames=40, fps=30.0, key=jax.random.key(i))))
+        paths.append(path)
+    return paths
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_fit_model_vlmm_stores_the_prototypes_and_automaton(tmp_path, monkeypatch):
     """``jaxtrack fit --model vlmm``: one file holds the BC-GPLVM and the VLMM-PF's prototypes and
     automaton; read back they are the dynamics that were fitted, plot-latent draws them, and
     ``track --method vlmmpf`` tracks with them without fitting prototypes again."""
     from jaxtrack.cli import main
-    from jaxtrack.data import generate_motion, motion_sequence
     from jaxtrack.dynamics import vlmm_from_record, vlmm_to_record
     from jaxtrack.io import save_sequence
     from jaxtrack.manifold import load_model, make_manifold_prior, read_header
 
-    paths = []
-    for i, gait in enumerate(("walk", "jog")):
-        path = str(tmp_path / f"{gait}.npz")
-        save_sequence(path, motion_sequence(generate_motion(gait, "S1", num_frames=40, fps=30.0, key=jax.random.key(i))))
-        paths.append(path)
+    paths = _walk_and_jog_files(tmp_path)
     out = str(tmp_path / "m.eqx")
     assert main(["fit", *paths, "--model", "vlmm", "--steps", "5", "--out", out]) == 0
     record = read_header(out)["extra"]["vlmm"]
@@ -339,16 +347,10 @@ def test_fit_model_vlmm_on_004s_sparse_bc_gplvm(tmp_path):
     """``jaxtrack fit --model vlmm --vlmm-manifold sparse-bc-gplvm``: 004's manifold (a sparse
     BC-GPLVM, here 20 inducing points) with the prototypes fitted through its back-constraint."""
     from jaxtrack.cli import main
-    from jaxtrack.data import generate_motion, motion_sequence
     from jaxtrack.dynamics import vlmm_from_record
-    from jaxtrack.io import save_sequence
     from jaxtrack.manifold import SparseBCGPLVM, load_model, make_manifold_prior, read_header
 
-    paths = []
-    for i, gait in enumerate(("walk", "jog")):
-        path = str(tmp_path / f"{gait}.npz")
-        save_sequence(path, motion_sequence(generate_motion(gait, "S1", num_frames=40, fps=30.0, key=jax.random.key(i))))
-        paths.append(path)
+    paths = _walk_and_jog_files(tmp_path)
     out = str(tmp_path / "sparse.eqx")
     assert main(["fit", *paths, "--model", "vlmm", "--vlmm-manifold", "sparse-bc-gplvm", "--inducing", "20", "--steps", "5",
                  "--out", out]) == 0

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
-from ._kernels import RBFBiasKernel, rbf_bias_kernel
+from ._kernels import RBFBiasKernel
 from ._models import KernelBackConstraint, kernel_back_constraint
 from ._predictor import GPPredictor
 from ._serialise import AbstractSaveableManifold, register_manifold
@@ -75,15 +75,16 @@ class SparseBCGPLVM(AbstractSaveableManifold):
         return self.back
 
     def header(self) -> dict:
-        return {"inducing": int(self.inducing.shape[0]), "approximation": self.approximation}
+        return self.as_sparse_gplvm().header()
 
     @classmethod
     def template(cls, header, dtype):
-        n, d, q = header["frames"], header["dims"], header["latent_dim"]
-        z = lambda *shape: jnp.zeros(shape, dtype)  # noqa: E731
-        back = KernelBackConstraint(weights=z(n, q), bias=z(q), inputs=z(n, d), gamma_x=z())
-        return cls(back=back, inducing=z(header["inducing"], q), kernel=rbf_bias_kernel(dtype=dtype), data=z(n, d), mean=z(d),
-                   scale=z(d), approximation=header["approximation"])
+        sparse = SparseGPLVM.template(header, dtype)
+        (n, q), d = sparse.latent.shape, sparse.data.shape[1]
+        back = KernelBackConstraint(weights=jnp.zeros((n, q), dtype), bias=jnp.zeros(q, dtype), inputs=jnp.zeros((n, d), dtype),
+                                    gamma_x=jnp.zeros((), dtype))
+        return cls(back=back, inducing=sparse.inducing, kernel=sparse.kernel, data=sparse.data, mean=sparse.mean, scale=sparse.scale,
+                   approximation=sparse.approximation)
 
 
 def make_sparse_bc_gplvm(Y, latent_dim: int = 3, *, num_inducing: int = 150, approximation: str = "vfe",
