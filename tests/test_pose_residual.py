@@ -85,6 +85,9 @@ def test_fit_and_bad_input(gpdm, walk):
     assert [config.residual_decay_of(m) for m in config.methods] == [1.0, 1.0, 1.0]  # a named residual walks
     default = ExperimentConfig(methods=("latentpf", "glegbpf", "vlmmpf"))  # a fading start by default
     assert [(default.residual_of(m), default.residual_decay_of(m)) for m in default.methods] == [(0.05, 0.9), (0.05, 0.9), (0.0, 1.0)]
+    from jaxtrack.tracking import FADING_START
+
+    assert FADING_START == (0.05, 0.9)
     assert ExperimentConfig(methods=("glegbpf",), residual_decay=0.5).residual_decay_of("glegbpf") == 0.5
 
 

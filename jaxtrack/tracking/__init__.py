@@ -40,6 +40,7 @@ from ._pipeline import track_sequence as track_sequence
 from ._pipeline import track_sequences as track_sequences
 from ._pipeline import tracker_keys as tracker_keys
 from ._pipeline import tracker_stream as tracker_stream
+from ._registry import FADING_START as FADING_START
 from ._registry import GRADIENT_COST as GRADIENT_COST
 from ._registry import Budget as Budget
 from ._registry import MotionData as MotionData
