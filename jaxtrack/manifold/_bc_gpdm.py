@@ -31,14 +31,15 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
+from ._back_constrained import AbstractBackConstrainedModel, back_constraint_template
 from ._kernels import LinearRBFKernel, RBFBiasKernel
 from ._models import GPDM, KernelBackConstraint, kernel_back_constraint, make_gpdm
 from ._predictor import GPPredictor
-from ._serialise import AbstractSaveableManifold, register_manifold
+from ._serialise import register_manifold
 
 
 @register_manifold
-class BCGPDM(AbstractSaveableManifold):
+class BCGPDM(AbstractBackConstrainedModel):
     """GPDM with latent points ``g(Y)`` (module docstring).
 
     Attributes:
@@ -55,23 +56,13 @@ class BCGPDM(AbstractSaveableManifold):
     scale: Float[Array, " d"]
     sequence_starts: tuple[int, ...] = eqx.field(static=True)
 
-    def as_gpdm(self) -> GPDM:
-        """The plain GPDM at this model's latent points ``g(Y)``: same objective, same maps."""
+    def unconstrained(self) -> GPDM:
+        """The plain GPDM at this model's latent points ``g(Y)``: 001 eq. 11 is its objective."""
         return GPDM(latent=self.back(self.data), kernel=self.kernel, dynamics=self.dynamics, log_w=self.log_w, data=self.data,
                     mean=self.mean, scale=self.scale, sequence_starts=self.sequence_starts)
 
-    def training_latent(self):
-        return self.back(self.data)
-
-    def objective(self):
-        """001 eq. 11 (``GPDM.objective``) with ``X = g(Y)``, maximised over ``g``'s weights."""
-        return self.as_gpdm().objective()
-
-    def predictor(self) -> GPPredictor:
-        return self.as_gpdm().predictor()
-
     def latent_dynamics(self) -> GPPredictor:
-        return self.as_gpdm().latent_dynamics()
+        return self.unconstrained().latent_dynamics()
 
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
@@ -83,17 +74,11 @@ class BCGPDM(AbstractSaveableManifold):
         # g shapes the fit; tracking encodes by projection (module docstring).
         return None
 
-    def header(self) -> dict:
-        return self.as_gpdm().header()
-
     @classmethod
     def template(cls, header, dtype):
         gpdm = GPDM.template(header, dtype)
-        (n, q), d = gpdm.latent.shape, gpdm.data.shape[1]
-        back = KernelBackConstraint(weights=jnp.zeros((n, q), dtype), bias=jnp.zeros(q, dtype), inputs=jnp.zeros((n, d), dtype),
-                                    gamma_x=jnp.zeros((), dtype))
-        return cls(back=back, kernel=gpdm.kernel, dynamics=gpdm.dynamics, log_w=gpdm.log_w, data=gpdm.data, mean=gpdm.mean,
-                   scale=gpdm.scale, sequence_starts=gpdm.sequence_starts)
+        return cls(back=back_constraint_template(gpdm, dtype), kernel=gpdm.kernel, dynamics=gpdm.dynamics, log_w=gpdm.log_w,
+                   data=gpdm.data, mean=gpdm.mean, scale=gpdm.scale, sequence_starts=gpdm.sequence_starts)
 
 
 def make_bc_gpdm(sequences, latent_dim: int = 3, *, gamma_x: float | None = None, scale: bool = True,

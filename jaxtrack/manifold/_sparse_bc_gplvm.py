@@ -20,15 +20,15 @@ import jax
 import jax.numpy as jnp
 
 from .._custom_types import Array, Float
+from ._back_constrained import AbstractBackConstrainedModel, back_constraint_template
 from ._kernels import RBFBiasKernel
 from ._models import KernelBackConstraint, kernel_back_constraint
-from ._predictor import GPPredictor
-from ._serialise import AbstractSaveableManifold, register_manifold
+from ._serialise import register_manifold
 from ._sparse import SparseGPLVM, make_sparse_gplvm
 
 
 @register_manifold
-class SparseBCGPLVM(AbstractSaveableManifold):
+class SparseBCGPLVM(AbstractBackConstrainedModel):
     """Sparse GPLVM with latent points ``g(Y)`` (module docstring).
 
     Attributes:
@@ -50,20 +50,10 @@ class SparseBCGPLVM(AbstractSaveableManifold):
         # From the shapes: evaluating g(Y) for it would run the float64 map outside float64 mode.
         return int(self.back.bias.shape[0])
 
-    def as_sparse_gplvm(self) -> SparseGPLVM:
+    def unconstrained(self) -> SparseGPLVM:
         """The plain sparse GPLVM at this model's latent points ``g(Y)``: same bound, same maps."""
         return SparseGPLVM(latent=self.back(self.data), inducing=self.inducing, kernel=self.kernel, data=self.data,
                            mean=self.mean, scale=self.scale, approximation=self.approximation)
-
-    def training_latent(self):
-        return self.back(self.data)
-
-    def objective(self):
-        """The collapsed bound minus ``1/2 ||g(Y)||_F^2``, maximised over ``g``, U and the kernel."""
-        return self.as_sparse_gplvm().objective()
-
-    def predictor(self) -> GPPredictor:
-        return self.as_sparse_gplvm().predictor()
 
     def trainable(self):
         spec = jax.tree.map(lambda _: False, self)
@@ -74,17 +64,11 @@ class SparseBCGPLVM(AbstractSaveableManifold):
         """``g``: standardised poses -> latent points (000 eq. 22)."""
         return self.back
 
-    def header(self) -> dict:
-        return self.as_sparse_gplvm().header()
-
     @classmethod
     def template(cls, header, dtype):
         sparse = SparseGPLVM.template(header, dtype)
-        (n, q), d = sparse.latent.shape, sparse.data.shape[1]
-        back = KernelBackConstraint(weights=jnp.zeros((n, q), dtype), bias=jnp.zeros(q, dtype), inputs=jnp.zeros((n, d), dtype),
-                                    gamma_x=jnp.zeros((), dtype))
-        return cls(back=back, inducing=sparse.inducing, kernel=sparse.kernel, data=sparse.data, mean=sparse.mean, scale=sparse.scale,
-                   approximation=sparse.approximation)
+        return cls(back=back_constraint_template(sparse, dtype), inducing=sparse.inducing, kernel=sparse.kernel, data=sparse.data,
+                   mean=sparse.mean, scale=sparse.scale, approximation=sparse.approximation)
 
 
 def make_sparse_bc_gplvm(Y, latent_dim: int = 3, *, num_inducing: int = 150, approximation: str = "vfe",
