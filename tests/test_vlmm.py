@@ -360,3 +360,48 @@ def test_fit_model_vlmm_on_004s_sparse_bc_gplvm(tmp_path):
         model, _ = load_model(out)
         dynamics = vlmm_from_record(header["extra"]["vlmm"], make_manifold_prior(model, 6 + model.data_dim))
     assert isinstance(model, SparseBCGPLVM) and dynamics.prototypes.dim == 6 and dynamics.prototypes.num_components >= 1
+
+
+def test_a_restart_draws_from_the_automatons_initial_states():
+    """004 sec. 6.1: a lost VLMM-PF restarts its particles from ``s``: the automaton's state from
+    ``vlmm.initial``, the prototype from gamma of it, the latent point from the prototype; the
+    global entries kept, and a wrapper's own entries too (``restart_states``)."""
+    from jaxtrack.dynamics import AbstractDynamicsWrapper, is_restartable, restart_states
+
+    dynamics = _two_prototype_dynamics(0.2)
+    vlmm = dynamics.vlmm
+    after_one = int(vlmm.transition[0, 1])  # the state of context (1,): gamma = (0.2, 0.8)
+    object.__setattr__(dynamics, "vlmm", eqx.tree_at(lambda v: v.initial, vlmm, jnp.zeros(vlmm.num_states).at[after_one].set(1.0)))
+    n = 20000
+    states = jnp.concatenate([jax.random.normal(jax.random.key(1), (n, 6)), jnp.zeros((n, 6))], axis=1)
+    new = eqx.filter_jit(VLMMDynamics.restart)(dynamics, jax.random.key(0), states)
+    labels = np.asarray(new[:, -1]).astype(int)
+    assert abs(labels.mean() - 0.8) < 4 * np.sqrt(0.2 * 0.8 / n)
+    np.testing.assert_array_equal(np.asarray(new[:, :6]), np.asarray(states[:, :6]))
+    np.testing.assert_allclose(np.asarray(new[labels == 1, 6:10]).mean(0), [5.0, 5.0, -0.1, 0.0], atol=0.01)
+    np.testing.assert_array_equal(np.asarray(new[:, -2]).astype(int), np.asarray(vlmm.transition[after_one])[labels])
+
+    class Tagged(AbstractDynamicsWrapper):
+        inner: VLMMDynamics
+
+        def own_size(self):
+            return 2
+
+        def init(self, key, pose, num_particles):
+            raise NotImplementedError
+
+        def to_pose(self, states):
+            raise NotImplementedError
+
+        def propose(self, key, previous):
+            raise NotImplementedError
+
+        def perturb(self, key, states, factor):
+            raise NotImplementedError
+
+    wrapped = Tagged(dynamics)
+    tagged = jnp.concatenate([states[:50], jnp.full((50, 2), 7.0)], axis=1)
+    assert is_restartable(wrapped)
+    out = restart_states(wrapped, jax.random.key(0), tagged)
+    np.testing.assert_array_equal(np.asarray(out[:, -2:]), 7.0)
+    np.testing.assert_array_equal(np.asarray(out[:, :-2]), np.asarray(dynamics.restart(jax.random.key(0), states[:50])))

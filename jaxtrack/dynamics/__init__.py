@@ -12,9 +12,12 @@ from ._autoregressive import fit_autoregressive_dynamics as fit_autoregressive_d
 from ._base import AbstractDynamics as AbstractDynamics
 from ._base import AbstractDynamicsWrapper as AbstractDynamicsWrapper
 from ._base import AbstractRefinableDynamics as AbstractRefinableDynamics
+from ._base import AbstractRestartableDynamics as AbstractRestartableDynamics
 from ._base import as_scale_vector as as_scale_vector
 from ._base import gaussian_step as gaussian_step
 from ._base import is_refinable as is_refinable
+from ._base import is_restartable as is_restartable
+from ._base import restart_states as restart_states
 from ._gle_graph import GLEGraphWalk as GLEGraphWalk
 from ._gle_graph import fit_gle_graph_walk as fit_gle_graph_walk
 from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics

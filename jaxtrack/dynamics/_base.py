@@ -75,12 +75,28 @@ class AbstractRefinableDynamics(AbstractDynamics):
         leave zero-scale entries where they are."""
 
 
+class AbstractRestartableDynamics(AbstractDynamics):
+    """Dynamics with a distribution to restart a lost tracker from (004 sec. 6.1: the VLMM's
+    initial states ``s``). Filters check for it with ``is_restartable``."""
+
+    @abc.abstractmethod
+    def restart(self, key: PRNGKeyArray, states: Float[Array, "particles state"]) -> Float[Array, "particles state"]:
+        """N states drawn afresh from the restart distribution, the global entries (the root)
+        kept from ``states``."""
+
+
 class AbstractDynamicsWrapper(AbstractDynamics):
     """Dynamics that carry state entries of their own after those of an ``inner`` dynamics (a
     Kalman-tracked velocity, an off-manifold residual). A wrapper that is an
-    ``AbstractRefinableDynamics`` is refinable when its inner dynamics are (``is_refinable``)."""
+    ``AbstractRefinableDynamics`` is refinable when its inner dynamics are (``is_refinable``);
+    any wrapper is restartable when its inner dynamics are (``is_restartable``), its own entries
+    kept (``restart_states``)."""
 
     inner: eqx.AbstractVar[AbstractDynamics]
+
+    @abc.abstractmethod
+    def own_size(self) -> int:
+        """How many state entries the wrapper appends after the inner dynamics' state."""
 
 
 def is_refinable(dynamics: AbstractDynamics) -> bool:
@@ -89,6 +105,27 @@ def is_refinable(dynamics: AbstractDynamics) -> bool:
     if not isinstance(dynamics, AbstractRefinableDynamics):
         return False
     return is_refinable(dynamics.inner) if isinstance(dynamics, AbstractDynamicsWrapper) else True
+
+
+def is_restartable(dynamics: AbstractDynamics) -> bool:
+    """Whether ``dynamics`` (through any wrappers) can restart a lost tracker
+    (``AbstractRestartableDynamics``)."""
+    if isinstance(dynamics, AbstractDynamicsWrapper):
+        return is_restartable(dynamics.inner)
+    return isinstance(dynamics, AbstractRestartableDynamics)
+
+
+def restart_states(dynamics: AbstractDynamics, key: PRNGKeyArray,
+                   states: Float[Array, "particles state"]) -> Float[Array, "particles state"]:
+    """``dynamics.restart`` of the innermost restartable dynamics, each wrapper's own entries
+    kept (a velocity's belief, a residual)."""
+    if isinstance(dynamics, AbstractDynamicsWrapper):
+        own = dynamics.own_size()
+        inner = restart_states(dynamics.inner, key, states[:, :-own])
+        return jnp.concatenate([inner, states[:, -own:]], axis=1)
+    if not isinstance(dynamics, AbstractRestartableDynamics):
+        raise TypeError(f"{type(dynamics).__name__} has no restart distribution (it is not an AbstractRestartableDynamics)")
+    return dynamics.restart(key, states)
 
 
 def copies(state: Float[Array, " state"], num_particles: int) -> Float[Array, "particles state"]:

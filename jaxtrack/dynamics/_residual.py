@@ -77,6 +77,9 @@ class PoseResidual(AbstractDynamicsWrapper, AbstractRefinableDynamics):
         """A, the residual's entries (the pose's joint angles)."""
         return self.scales.shape[0]
 
+    def own_size(self) -> int:
+        return self.size
+
     def _split(self, states):
         return states[:, : -self.size], states[:, -self.size :]
 

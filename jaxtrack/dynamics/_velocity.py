@@ -129,6 +129,9 @@ class StateVelocity(AbstractDynamicsWrapper, AbstractRefinableDynamics):
         """K, the leading inner-state entries that carry a velocity."""
         return self.acceleration.shape[0]
 
+    def own_size(self) -> int:
+        return 4 * self.size + 1
+
     def _split(self, states):
         d = self.size
         inner = states[:, : -(4 * d + 1)]

@@ -27,12 +27,12 @@ import numpy as np
 
 from .._custom_types import Array, Float, PRNGKeyArray
 from ..manifold import ManifoldPrior
-from ._base import AbstractDynamics, check_scale_vector, copies, motion_sequences, rms_step
+from ._base import AbstractRestartableDynamics, check_scale_vector, copies, motion_sequences, rms_step
 from ._prototypes import GaussianMixture, MixtureFit, fit_uncertain_mixture
 from ._vlmm import VLMM, SuffixTree, fit_vlmm
 
 
-class VLMMDynamics(AbstractDynamics):
+class VLMMDynamics(AbstractRestartableDynamics):
     """Attributes:
         manifold: the back-constrained manifold the latent points live on.
         prototypes: the motion prototypes, a mixture over ``(x, x_dot)`` (2q dimensions).
@@ -111,6 +111,21 @@ class VLMMDynamics(AbstractDynamics):
         glob = glob + self.s_global * jax.random.normal(k_global, glob.shape, previous.dtype)
         discrete = jnp.stack([new_state, new_label], axis=1).astype(previous.dtype)
         return jnp.concatenate([glob, augmented, discrete], axis=1), jnp.zeros(n, previous.dtype)
+
+    def restart(self, key, states):
+        """004 sec. 6.1: each particle's automaton state drawn from ``s`` (``vlmm.initial``), its
+        prototype from ``gamma`` of that state, ``(x, x_dot)`` from the prototype; the global
+        entries kept."""
+        g, q = self._split
+        n = states.shape[0]
+        k_state, k_label, k_point = jax.random.split(key, 3)
+        start = jax.random.categorical(k_state, jnp.log(jnp.maximum(self.vlmm.initial, 1e-30)), shape=(n,))
+        label = self.vlmm.sample(k_label, start)
+        state = self.vlmm.step(start, label)
+        augmented = self.prototypes.means[label] + jnp.einsum(
+            "nij,nj->ni", self._factors()[label], jax.random.normal(k_point, (n, 2 * q), states.dtype))
+        discrete = jnp.stack([state, label], axis=1).astype(states.dtype)
+        return jnp.concatenate([states[:, :g], augmented, discrete], axis=1)
 
     def perturb(self, key, states, factor):
         g, q = self._split

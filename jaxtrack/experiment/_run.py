@@ -291,7 +291,7 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
                                     residual_decay=config.residual_decay_of(method))
             _record_dynamics(tracker, method, config, results, velocity_from is not None)
             _, run_root = tracker_keys(config.seed, method)
-            errors, curves, group_errors, times, ess, degenerate, estimates = [], [], [], [], [], [], None
+            errors, curves, group_errors, times, ess, degenerate, restarts, estimates = [], [], [], [], [], [], [], None
             for run, (poses, joints, info, seconds) in enumerate(_runs(tracker, run_root, scene, config)):
                 times.append(seconds)
                 errors.append(float(mean_joint_error_mm(joints, scene.truth_joints)))
@@ -299,6 +299,8 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
                 group_errors.append({g: float(v) for g, v in per_group_error_mm(joints, scene.truth_joints, groups).items()})
                 ess.append(float(np.mean(np.asarray(info.ess))))
                 degenerate.append(float(np.mean(np.asarray(info.degenerate))))
+                if info.restarted is not None:  # a filter that restarts when lost (RecoveringSIR)
+                    restarts.append(int(np.sum(np.asarray(info.restarted))))
                 if run == 0:
                     estimates = (poses, joints)
             steady = times[1:] or times
@@ -317,6 +319,7 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
                 "start_error_mm": scene.start_error_mm,
                 "mean_ess": float(np.mean(ess)),
                 "degenerate_fraction": float(np.mean(degenerate)),
+                "restarts_per_run": restarts or None,
                 "likelihood_evaluations_per_frame": config.budget,
             }
             results["estimates"].setdefault(name, {})[method] = estimates

@@ -17,6 +17,7 @@ from ._estimators import ProjectedMean as ProjectedMean
 from ._estimators import StateMean as StateMean
 from ._estimators import WeightedMean as WeightedMean
 from ._estimators import make_estimator as make_estimator
+from ._recovering import RecoveringSIR as RecoveringSIR
 from ._refine import LangevinRefinement as LangevinRefinement
 from ._refine import RefineInfo as RefineInfo
 from ._refine import resample_and_refine as resample_and_refine

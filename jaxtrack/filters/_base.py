@@ -46,6 +46,8 @@ class StepInfo(eqx.Module):
         survival: (M,) survival rate ``ESS / N`` per layer.
         degenerate: whether any layer's weights were all ``-inf``/NaN (then made uniform).
         refine: the ``RefineInfo`` of gradient-refined moves (None without them).
+        restarted: whether the filter restarted its particles this frame (``RecoveringSIR``;
+            None for filters that never do).
     """
 
     estimate: Float[Array, " d"]
@@ -55,6 +57,7 @@ class StepInfo(eqx.Module):
     survival: Float[Array, " m"]
     degenerate: Bool[Array, ""]
     refine: Any = None
+    restarted: Any = None
 
 
 class AbstractFilter(eqx.Module):

@@ -4,12 +4,18 @@ resolution), the robust reprojection likelihood of 2-D keypoint detections, sums
 likelihoods, plain functions, and the ground plane as a pose prior that multiplies any of them.
 ``LikelihoodRecipe`` and its registry name the likelihoods a test scene can be tracked with (``available_likelihoods()``)."""
 
+from ._base import AbstractEvidenceLikelihood as AbstractEvidenceLikelihood
 from ._base import AbstractLikelihood as AbstractLikelihood
 from ._base import FunctionLikelihood as FunctionLikelihood
 from ._base import ObservationPart as ObservationPart
 from ._base import SumLikelihood as SumLikelihood
 from ._base import as_likelihood as as_likelihood
+from ._base import evidence_scorer as evidence_scorer
+from ._base import has_evidence as has_evidence
+from ._base import lost_threshold as lost_threshold
 from ._base import set_references as set_references
+from ._blobs import LOST_DIVERGENCE as LOST_DIVERGENCE
+from ._blobs import BlobEvidence as BlobEvidence
 from ._blobs import BlobLikelihood as BlobLikelihood
 from ._blobs import carve as carve
 from ._blobs import fit_blobs as fit_blobs
@@ -17,6 +23,7 @@ from ._blobs import footprint_radii as footprint_radii
 from ._blobs import gaussian_kl as gaussian_kl
 from ._blobs import make_blob_likelihood as make_blob_likelihood
 from ._blobs import mixture_kl as mixture_kl
+from ._blobs import mixture_log_density as mixture_log_density
 from ._blobs import pose_blobs as pose_blobs
 from ._blobs import visual_hull as visual_hull
 from ._blobs import voxel_grid as voxel_grid

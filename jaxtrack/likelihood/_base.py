@@ -105,6 +105,70 @@ class FunctionLikelihood(AbstractLikelihood):
         return jnp.asarray(self.function(poses, observation))
 
 
+class AbstractEvidenceLikelihood(AbstractLikelihood):
+    """A likelihood that first summarises a frame's observation into evidence fitted from
+    starting poses, then scores poses against that evidence (004 sec. 6: blobs fitted to the
+    visual hull). ``log_likelihood`` fits from the poses' mean alone; a filter that knows better
+    starts (004 sec. 6.1: the last estimate and the prediction) calls ``fit_evidence`` and
+    ``score`` itself, through ``evidence_scorer``."""
+
+    @abc.abstractmethod
+    def fit_evidence(self, observation: Any, starts: Float[Array, "starts dofs"]) -> Any:
+        """The frame's evidence fitted from each of S starting poses, the best fit kept (a pytree)."""
+
+    @abc.abstractmethod
+    def score(self, poses: Float[Array, "particles dofs"], evidence: Any) -> Float[Array, " particles"]:
+        """Log-likelihood of each of N poses against fitted evidence."""
+
+    def log_likelihood(self, poses, observation):
+        return self.score(poses, self.fit_evidence(observation, jnp.mean(poses, axis=0)[None]))
+
+
+def evidence_scorer(likelihood: AbstractLikelihood, observation: Any, starts: Float[Array, "starts dofs"]) -> Callable:
+    """``poses (N, D) -> (N,)``: the likelihood with the evidence of every
+    ``AbstractEvidenceLikelihood`` among its terms (through ``SumLikelihood`` and
+    ``ObservationPart``) fitted once from ``starts`` (S, D); any other term as it is."""
+    if isinstance(likelihood, AbstractEvidenceLikelihood):
+        evidence = likelihood.fit_evidence(observation, starts)
+        return lambda poses: likelihood.score(poses, evidence)
+    if isinstance(likelihood, SumLikelihood):
+        scorers = [evidence_scorer(term, observation, starts) for term in likelihood.terms]
+
+        def total(poses):  # in SumLikelihood's order, so one start gives its values exactly
+            value = scorers[0](poses)
+            for scorer in scorers[1:]:
+                value = value + scorer(poses)
+            return value
+
+        return total
+    if isinstance(likelihood, ObservationPart) and isinstance(observation, dict) and likelihood.key in observation:
+        return evidence_scorer(likelihood.term, observation[likelihood.key], starts)
+    return lambda poses: likelihood.log_likelihood(poses, observation)
+
+
+def has_evidence(likelihood: AbstractLikelihood) -> bool:
+    """Whether any term of ``likelihood`` is an ``AbstractEvidenceLikelihood``."""
+    if isinstance(likelihood, AbstractEvidenceLikelihood):
+        return True
+    if isinstance(likelihood, SumLikelihood):
+        return any(has_evidence(term) for term in likelihood.terms)
+    return isinstance(likelihood, ObservationPart) and has_evidence(likelihood.term)
+
+
+def lost_threshold(likelihood: AbstractLikelihood) -> float | None:
+    """The log-likelihood under which a filter that can restart deems itself lost: the sum of the
+    ``lost_below`` of the likelihood's evidence terms (through ``SumLikelihood`` and
+    ``ObservationPart``; a term without one contributes 0, its best value), None when no term
+    has one."""
+    if isinstance(likelihood, SumLikelihood):
+        found = [lost_threshold(term) for term in likelihood.terms]
+        return None if all(f is None for f in found) else float(sum(f for f in found if f is not None))
+    if isinstance(likelihood, ObservationPart):
+        return lost_threshold(likelihood.term)
+    value = getattr(likelihood, "lost_below", None) if isinstance(likelihood, AbstractEvidenceLikelihood) else None
+    return None if value is None else float(value)
+
+
 def as_likelihood(likelihood) -> AbstractLikelihood:
     """An ``AbstractLikelihood`` as it is, a plain callable wrapped in ``FunctionLikelihood``."""
     if isinstance(likelihood, AbstractLikelihood):

@@ -11,8 +11,10 @@ between its own blobs and those.
    middle, with a solid cylinder's second moments (``L^2/12`` along the axis, ``r^2/4`` across),
    weighted by the capsule's volume: 004's "Gaussian blobs attached to the bones".
 3. **Blobs of the evidence** (``fit_blobs``): the same blobs refitted to the occupied voxels by
-   a few EM iterations, started from the blobs of the particles' mean pose (004 starts from the
-   last estimate and the VLMM's prediction; the particles' mean is the dynamics' prediction).
+   a few EM iterations, started from the blobs of each of a few starting poses, the fit whose
+   mixture gives the voxels the highest mean log-density kept (004 sec. 6.1 starts from the last
+   estimate and the VLMM's prediction: ``filters.RecoveringSIR`` passes both; scored alone,
+   ``log_likelihood`` starts from the particles' mean pose, the dynamics' prediction).
 4. **Score** (004 eqs. 6-7): ``D(F || G) ~ sum_i alpha_i (KL(f_i || g_i) + ln alpha_i / beta_i)``
    between the particle's mixture F and the evidence's G, blob i against blob i; the particle's
    weight is inversely proportional to it (004), ``ln p = -power * ln D``.
@@ -31,7 +33,13 @@ import numpy as np
 from .._custom_types import Array, Float
 from ..body import BodyModel
 from ..camera import CameraRig, image_shape, project_points
-from ._base import AbstractLikelihood
+from ._base import AbstractEvidenceLikelihood
+
+# The best particle's divergence above which a tracker is deemed lost (004 sec. 6.1). On the
+# demo's walk, VLMM-PF at power 10: frames tracked within 60 mm had the estimate's divergence at
+# 1.1-1.4 (median) and 1.7-3.4 (95th percentile), frames off by over 120 mm 4.8-25 (quartiles);
+# docs/vlmm.md, "Restarting a lost tracker".
+LOST_DIVERGENCE = 10.0
 
 
 def voxel_grid(centre: Float[Array, " 3"], size, voxel: float) -> Float[Array, "n 3"]:
@@ -195,7 +203,34 @@ def mixture_kl(alpha, mean_f, cov_f, beta, mean_g, cov_g):
     return jnp.sum(alpha * (gaussian_kl(mean_f, cov_f, mean_g, cov_g) + ratio), axis=-1)
 
 
-class BlobLikelihood(AbstractLikelihood):
+def mixture_log_density(points, mask, weights, means, covs) -> Float[Array, ""]:
+    """Mean over the masked points of ``ln sum_k w_k N(point; mean_k, cov_k)`` (nats): how well a
+    blob mixture explains the occupied voxels, EM's own objective."""
+    log_r = jnp.log(jnp.maximum(weights, 1e-30))[None] + _log_gauss(points, means, covs)
+    per_point = jax.scipy.special.logsumexp(log_r, axis=1)
+    m = mask.astype(points.dtype)
+    return jnp.sum(jnp.where(mask, per_point, 0.0)) / jnp.maximum(jnp.sum(m), 1.0)
+
+
+class BlobEvidence(eqx.Module):
+    """A frame's evidence (module docstring, step 3): the blobs fitted from each of S starts.
+
+    Attributes:
+        weights, means, covariances: (S, K), (S, K, 3), (S, K, 3, 3) the blobs fitted to the
+            voxels from each start.
+        fit: (S,) the mean log-density of the occupied voxels under each (nats,
+            ``mixture_log_density``).
+        occupied: how many voxels the hull kept.
+    """
+
+    weights: Float[Array, "s k"]
+    means: Float[Array, "s k 3"]
+    covariances: Float[Array, "s k 3 3"]
+    fit: Float[Array, " s"]
+    occupied: Array
+
+
+class BlobLikelihood(AbstractEvidenceLikelihood):
     """004 sec. 6's likelihood (module docstring).
 
     Attributes:
@@ -207,6 +242,10 @@ class BlobLikelihood(AbstractLikelihood):
         max_coarse: coarse voxels refined per frame (static).
         radii: per-view dilation of the coarse test, pixels (static).
         iterations: EM iterations of the evidence's blobs (static).
+        select: which of several starts' fits scores the poses: "fit" (the one that explains
+            the voxels best) or "particles" (the one the best pose scores highest on) (static).
+        lost_divergence: the best particle's ``D(F || G)`` above which a filter that can restart
+            deems itself lost (static; None: never; ``lost_below``).
     """
 
     body: BodyModel
@@ -217,37 +256,65 @@ class BlobLikelihood(AbstractLikelihood):
     max_coarse: int = eqx.field(static=True)
     radii: tuple[int, ...] = eqx.field(static=True)
     iterations: int = eqx.field(static=True)
+    lost_divergence: float | None = eqx.field(static=True, default=None)
+    select: str = eqx.field(static=True, default="fit")
+
+    @property
+    def lost_below(self) -> float | None:
+        """``-power ln lost_divergence``: the log-likelihood of a particle at that divergence."""
+        return None if self.lost_divergence is None else float(-self.power * np.log(self.lost_divergence))
 
     def evidence(self, observed, centre):
-        """The occupied voxels about ``centre`` and the evidence's blobs fitted to them from the
-        blobs of ``start`` poses: ``(points, occupied)``."""
+        """The visual hull's voxels about ``centre`` (3,): ``(points, occupied)``."""
         return visual_hull(observed, self.rig, centre, size=self.size, voxel=self.voxel, max_coarse=self.max_coarse,
                            radii=self.radii)
 
-    def log_likelihood(self, poses, observed):
-        dtype = poses.dtype
-        mean_pose = jnp.mean(poses, axis=0)
-        centre = mean_pose[:3]
-        points, occupied = self.evidence(observed, centre)
-        start = pose_blobs(self.body, mean_pose)
-        beta, mean_g, cov_g = fit_blobs(points.astype(dtype), occupied, *start, iterations=self.iterations)
+    def fit_evidence(self, observed, starts) -> BlobEvidence:
+        """The hull about the starts' mean root, and the blobs fitted to it from the blobs of each
+        start pose (S, D)."""
+        dtype = starts.dtype
+        points, occupied = self.evidence(observed, jnp.mean(starts[:, :3], axis=0))
+        points = points.astype(dtype)
+        fits = jax.vmap(lambda w, mu, s: fit_blobs(points, occupied, w, mu, s, iterations=self.iterations))(
+            *pose_blobs(self.body, starts))
+        quality = jax.vmap(lambda w, mu, s: mixture_log_density(points, occupied, w, mu, s))(*fits)
+        return BlobEvidence(*fits, jnp.where(jnp.isfinite(quality), quality, -jnp.inf), jnp.sum(occupied))
+
+    def score(self, poses, evidence: BlobEvidence):
+        """Each pose against the kept fit: with ``select="fit"`` the fit that explains the voxels
+        best (the highest ``fit``), with ``"particles"`` the one the best pose scores highest on."""
         alpha, mean_f, cov_f = pose_blobs(self.body, poses)
-        divergence = mixture_kl(alpha, mean_f, cov_f, beta[None], mean_g[None], cov_g[None])
-        value = -self.power * jnp.log(jnp.maximum(divergence, 1e-6))
-        has_evidence = jnp.sum(occupied) >= 8
+
+        def against(beta, mean_g, cov_g):
+            divergence = mixture_kl(alpha, mean_f, cov_f, beta[None], mean_g[None], cov_g[None])
+            return -self.power * jnp.log(jnp.maximum(divergence, 1e-6))
+
+        values = jax.vmap(against)(evidence.weights, evidence.means, evidence.covariances)  # (S, N)
+        if self.select == "fit":
+            best = jnp.argmax(evidence.fit)
+        else:
+            best = jnp.argmax(jnp.max(jnp.where(jnp.isfinite(values), values, -jnp.inf), axis=1))
+        value = values[best]
+        has_evidence = evidence.occupied >= 8
         return jnp.where(has_evidence & jnp.isfinite(value), value, jnp.where(has_evidence, -jnp.inf, 0.0))
 
 
 def make_blob_likelihood(body: BodyModel, rig: CameraRig, *, power: float = 1.0, voxel: float = 0.05,
                          size=(2.4, 2.4, 2.2), max_coarse: int = 1024, iterations: int = 5, nearest_depth: float | None = None,
-                         dtype=jnp.float32) -> BlobLikelihood:
+                         lost_divergence: float | None = LOST_DIVERGENCE, select: str = "fit", dtype=jnp.float32) -> BlobLikelihood:
     """004's blob likelihood (module docstring); ``nearest_depth``: the closest a camera comes to
-    the person (metres; None: from the rig), which sizes the coarse test's dilation."""
+    the person (metres; None: from the rig), which sizes the coarse test's dilation;
+    ``lost_divergence`` and ``select`` as ``BlobLikelihood``'s."""
     if not (power > 0 and voxel > 0 and (nearest_depth is None or nearest_depth > 0) and max_coarse >= 1 and iterations >= 1):
         raise ValueError("power, voxel, nearest_depth, max_coarse and iterations must be positive")
+    if lost_divergence is not None and not lost_divergence > 0:
+        raise ValueError(f"lost_divergence must be positive or None, got {lost_divergence}")
+    if select not in ("fit", "particles"):
+        raise ValueError(f"select must be 'fit' or 'particles', got {select!r}")
     if len(tuple(size)) != 3 or min(size) <= 2 * voxel:
         raise ValueError(f"size must be three box edges over two voxels long, got {size}")
     image_shape(rig)
     return BlobLikelihood(body=body, rig=rig, power=jnp.asarray(power, dtype), voxel=float(voxel),
                           size=tuple(float(s) for s in size), max_coarse=int(max_coarse),
-                          radii=footprint_radii(rig, voxel, nearest_depth), iterations=int(iterations))
+                          radii=footprint_radii(rig, voxel, nearest_depth), iterations=int(iterations),
+                          lost_divergence=None if lost_divergence is None else float(lost_divergence), select=select)

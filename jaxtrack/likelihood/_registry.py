@@ -20,7 +20,7 @@ from typing import Any
 
 from .._registries import Registry, check_name
 from ._base import AbstractLikelihood, ObservationPart
-from ._blobs import make_blob_likelihood
+from ._blobs import LOST_DIVERGENCE, make_blob_likelihood
 from ._edges import make_edge_foreground_likelihood
 from ._histogram import make_histogram_likelihood
 from ._keypoints import make_keypoint_likelihood
@@ -221,12 +221,13 @@ register_likelihood(LikelihoodRecipe(
     {"edge_width": 1.0, "size": 7, "spacing": 1.0}, observes=("silhouettes", "images")))
 
 
-def _blobs(inputs: SceneInputs, *, power: float, voxel: float, iterations: int) -> AbstractLikelihood:
+def _blobs(inputs: SceneInputs, *, power: float, voxel: float, iterations: int, lost_divergence: float) -> AbstractLikelihood:
     return make_blob_likelihood(inputs.body, inputs.rig, power=power, voxel=voxel, iterations=iterations,
-                                dtype=inputs.body.radii.dtype)
+                                lost_divergence=lost_divergence if lost_divergence > 0 else None, dtype=inputs.body.radii.dtype)
 
 
 register_likelihood(LikelihoodRecipe(
     "blobs", "paper 004's volumetric likelihood: the silhouettes' visual hull (coarse to fine) summarised by Gaussian "
-    "blobs, each particle's blobs scored by their relative entropy to those (004 eqs. 6-7)", _blobs,
-    {"power": 1.0, "voxel": 0.05, "iterations": 5}))
+    "blobs, each particle's blobs scored by their relative entropy to those (004 eqs. 6-7); a tracker that can restart "
+    "(VLMM-PF) restarts where its best particle's divergence exceeds lost_divergence (0: never; 004 sec. 6.1)", _blobs,
+    {"power": 1.0, "voxel": 0.05, "iterations": 5, "lost_divergence": LOST_DIVERGENCE}))

@@ -1,10 +1,14 @@
 """VLMM-PF (004 sec. 5): Condensation over the augmented latent space of a back-constrained
 GPLVM, moved by motion prototypes whose order a variable-length Markov model predicts
 (``dynamics.VLMMDynamics``); weights from any likelihood of the library; estimate ``mu(E[x])``
-with the global entries' weighted mean."""
+with the global entries' weighted mean. The filter is ``filters.RecoveringSIR``: with 004's
+blob likelihood the evidence is fitted from the last estimate and from the prediction, the
+better fit kept, and a frame whose best particle fits the evidence poorly restarts the
+particles from the VLMM's initial states (004 sec. 6.1; ``likelihood.lost_threshold``)."""
 
 from ..dynamics import fit_vlmm_dynamics, vlmm_from_record
-from ._latentpf import latent_pf_filter
+from ..filters import RecoveringSIR, make_estimator
+from ..likelihood import as_likelihood, lost_threshold
 from ._registry import TrackerRecipe
 
 
@@ -23,7 +27,9 @@ def fit(key, motion):
 
 
 def build(dynamics, likelihood, budget):
-    return latent_pf_filter(dynamics, likelihood, budget.particles)
+    likelihood = as_likelihood(likelihood)
+    return RecoveringSIR(dynamics, likelihood, budget.particles, estimator=make_estimator("latent_mean"),
+                         lost_below=lost_threshold(likelihood))
 
 
 # 004 sec. 7 learns a 3-D latent space (jumping jacks, 100 pseudo-points) and a 5-label memory.

@@ -362,6 +362,10 @@ API_CASES: list[APICase] = [
     APICase("empty silhouettes= to make_silhouette_likelihood",
             lambda c: _jt().make_silhouette_likelihood(c.body, c.rig, silhouettes=np.zeros((4, 2, 12, 16))), ValueError,
             ("empty silhouette in view 0",)),
+    APICase("a negative lost divergence for the blobs", lambda c: __import__("jaxtrack.likelihood").likelihood.make_blob_likelihood(
+        c.body, c.rig, lost_divergence=-1.0), ValueError, ("lost_divergence must be positive or None", "got -1.0")),
+    APICase("restarts on dynamics that cannot restart", lambda c: _jt().filters.RecoveringSIR(_jt().fit_pose_random_walk(
+        [np.asarray(c.sequence.pose)]), c.likelihood, 4, lost_below=-10.0), ValueError, ("PoseRandomWalk has none",)),
     APICase("prepare_test(frames=-3)", lambda c: _jt().prepare_test(c.sequence, "walk", key=c.key, frames=-3), ValueError,
             ("walk: frames must be a whole number", "got -3")),
     APICase("prepare_test with an int key", lambda c: _jt().prepare_test(c.sequence, "walk", key=0), TypeError,
