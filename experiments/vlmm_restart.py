@@ -25,22 +25,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxtrack import tracking
 from jaxtrack.body import forward_kinematics
 from jaxtrack.demo import demo_sequences
 from jaxtrack.evaluation import mean_joint_error_mm
 from jaxtrack.filters import run_filter
 from jaxtrack.likelihood import BlobLikelihood, mixture_kl, pose_blobs
-from jaxtrack.tracking import (
-    Budget,
-    build_tracker,
-    fit_manifold,
-    fit_tracker,
-    get_tracker,
-    motion_data,
-    prepare_test,
-    sequence_poses,
-    tracker_keys,
-)
 
 POWER = 10.0
 
@@ -75,19 +65,20 @@ def main():
     args = parser.parse_args()
     key = jax.random.key(0)
     train, validation, test, names = demo_sequences(key, test_frames=40)
-    train_poses = [sequence_poses(s, "train", key=key) for s in train]
-    validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
-    recipe = get_tracker("vlmmpf")
-    model, _, starts = fit_manifold(train_poses, 3, 100, kind="bc-gplvm")[:3]
-    fitted = fit_tracker(recipe, tracker_keys(0, "vlmmpf")[0], motion_data(train_poses, validation_poses, model, starts))
-    scenes = [prepare_test(seq, name, key=key, likelihood="blobs", likelihood_options={"power": POWER, "lost_divergence": 0})
+    train_poses = [tracking.sequence_poses(s, "train", key=key) for s in train]
+    validation_poses = [tracking.sequence_poses(s, "validation", key=key) for s in validation]
+    recipe = tracking.get_tracker("vlmmpf")
+    model, _, starts = tracking.fit_manifold(train_poses, 3, 100, kind="bc-gplvm")[:3]
+    motion = tracking.motion_data(train_poses, validation_poses, model, starts)
+    fitted = tracking.fit_tracker(recipe, tracking.tracker_keys(0, "vlmmpf")[0], motion)
+    scenes = [tracking.prepare_test(seq, name, key=key, likelihood="blobs", likelihood_options={"power": POWER, "lost_divergence": 0})
               for seq, name in zip(test, names["test"])]
     blob = scenes[0].likelihood
     assert isinstance(blob, BlobLikelihood)
 
     rows = []
     for scene in scenes:
-        tracker = build_tracker(recipe, fitted, scene.likelihood, Budget(500, 5))
+        tracker = tracking.build_tracker(recipe, fitted, scene.likelihood, tracking.Budget(500, 5))
         for run in range(args.runs):
             _, info = run_filter(tracker, jax.random.fold_in(key, run), scene.initial_pose, scene.observations)
             estimates = np.asarray(info.estimate)
@@ -108,7 +99,7 @@ def main():
     wrong = jnp.asarray(scene.initial_pose).at[6:].set(jnp.asarray(other.truth_poses[10, 6:], jnp.float32))
     restarts = []
     for lost in (None, 3.0, 5.0, 10.0):
-        tracker = build_tracker(recipe, fitted, scene.likelihood, Budget(500, 5), velocity_from=validation_poses)
+        tracker = tracking.build_tracker(recipe, fitted, scene.likelihood, tracking.Budget(500, 5), velocity_from=validation_poses)
         tracker = dataclasses.replace(tracker, lost_below=None if lost is None else float(-POWER * np.log(lost)))
         for start_name, start in (("true start", scene.initial_pose), ("wrong start", wrong)):
             errors, counts = [], []

@@ -30,9 +30,9 @@ from ..dynamics import AbstractDynamics, is_restartable, restart_states
 from ..likelihood import AbstractLikelihood, evidence_scorer
 from ._base import AbstractComposedFilter, FilterState, StepInfo, check_particles
 from ._estimators import AbstractEstimator, WeightedMean
-from ._refine import LangevinRefinement, resample_and_refine
+from ._refine import LangevinRefinement
 from ._resampling import get_resampler
-from ._sir import REFINE_STREAM, check_components, check_refinement
+from ._sir import check_components, check_refinement, refine_and_report
 from ._smc import check_layer_shapes, layer_keys, weigh_layer
 
 RESTART_STREAM = 1299709  # fold_in tag of a frame's restart key
@@ -100,20 +100,4 @@ class RecoveringSIR(AbstractComposedFilter):
 
             moved, log_correction, log_lik = jax.lax.cond(restarted, restart, lambda _: (moved, log_correction, log_lik), None)
         log_weights, layer = weigh_layer(log_lik, log_correction, ancestors)
-        refine_info = None
-        if self.refine is not None:
-            moved, log_weights, refine_info = resample_and_refine(
-                self.refine, jax.random.fold_in(key, REFINE_STREAM), moved, state.particles[layer.ancestors], log_weights,
-                dynamics=self.dynamics, log_likelihood=log_likelihood, resample=resample,
-            )
-        info = StepInfo(
-            estimate=self.estimator(log_weights, moved, self.dynamics),
-            ess=layer.ess,
-            log_evidence=layer.log_evidence,
-            betas=layer.beta[None],
-            survival=(layer.ess / self.num_particles)[None],
-            degenerate=layer.degenerate,
-            refine=refine_info,
-            restarted=restarted,
-        )
-        return FilterState(moved, log_weights), info
+        return refine_and_report(self, key, state, moved, log_weights, layer, log_likelihood, resample, restarted)

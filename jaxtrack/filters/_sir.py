@@ -59,22 +59,30 @@ class SIR(AbstractComposedFilter):
             layer_keys(key, 0), state.particles, state.log_weights, move=self.dynamics.propose, log_likelihood=log_likelihood,
             resample=resample,
         )
-        refine_info = None
-        if self.refine is not None:
-            particles, log_weights, refine_info = resample_and_refine(
-                self.refine, jax.random.fold_in(key, REFINE_STREAM), particles, state.particles[layer.ancestors], log_weights,
-                dynamics=self.dynamics, log_likelihood=log_likelihood, resample=resample,
-            )
-        info = StepInfo(
-            estimate=self.estimator(log_weights, particles, self.dynamics),
-            ess=layer.ess,
-            log_evidence=layer.log_evidence,
-            betas=layer.beta[None],
-            survival=(layer.ess / self.num_particles)[None],
-            degenerate=layer.degenerate,
-            refine=refine_info,
+        return refine_and_report(self, key, state, particles, log_weights, layer, log_likelihood, resample)
+
+
+def refine_and_report(filter_, key, state: FilterState, particles, log_weights, layer, log_likelihood, resample,
+                      restarted=None) -> tuple[FilterState, StepInfo]:
+    """The end of a one-layer step (``SIR``, ``RecoveringSIR``): the filter's gradient-refined
+    moves if it has them, then the frame's estimate and ``StepInfo``."""
+    refine_info = None
+    if filter_.refine is not None:
+        particles, log_weights, refine_info = resample_and_refine(
+            filter_.refine, jax.random.fold_in(key, REFINE_STREAM), particles, state.particles[layer.ancestors], log_weights,
+            dynamics=filter_.dynamics, log_likelihood=log_likelihood, resample=resample,
         )
-        return FilterState(particles, log_weights), info
+    info = StepInfo(
+        estimate=filter_.estimator(log_weights, particles, filter_.dynamics),
+        ess=layer.ess,
+        log_evidence=layer.log_evidence,
+        betas=layer.beta[None],
+        survival=(layer.ess / filter_.num_particles)[None],
+        degenerate=layer.degenerate,
+        refine=refine_info,
+        restarted=restarted,
+    )
+    return FilterState(particles, log_weights), info
 
 
 def check_components(dynamics, likelihood, estimator) -> None:
