@@ -35,10 +35,9 @@ from ..body import BodyModel
 from ..camera import CameraRig, image_shape, project_points
 from ._base import AbstractEvidenceLikelihood
 
-# The best particle's divergence above which a tracker is deemed lost (004 sec. 6.1). On the
-# demo's walk, VLMM-PF at power 10: frames tracked within 60 mm had the estimate's divergence at
-# 1.1-1.4 (median) and 1.7-3.4 (95th percentile), frames off by over 120 mm 4.8-25 (quartiles);
-# docs/vlmm.md, "Restarting a lost tracker".
+# The best particle's divergence above which a tracker is deemed lost (004 sec. 6.1): above the
+# 95th percentile of the frames a tracker followed within 120 mm, near the median of the frames
+# it lost (docs/vlmm.md, "Restarting a lost tracker", experiments/vlmm_restart.py).
 LOST_DIVERGENCE = 10.0
 
 
