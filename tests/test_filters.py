@@ -301,7 +301,8 @@ def pose_likelihood(poses, target):
     return -0.5 * jnp.sum(((poses - target) / 0.05) ** 2, axis=1)
 
 
-@pytest.mark.parametrize("proposal", ["product", "prior"])
+# "prior": moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-28)
+@pytest.mark.parametrize("proposal", ["product", pytest.param("prior", marks=pytest.mark.slow)])
 def test_mrpf_with_a_flat_manifold_term_equals_sir(walk_prior, getkey, proposal):
     prior, poses = walk_prior
     key = getkey()
@@ -553,6 +554,7 @@ def test_smc_layer_weights_are_tempered_likelihood_plus_correction(getkey):
     np.testing.assert_allclose(info.log_evidence, jax.nn.logsumexp(log_likelihood(particles + 1.0)) - np.log(6), rtol=1e-12)
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-28)
 def test_latent_condensation_is_sir_is_one_layer_apf(walk_prior, getkey):
     """003 Alg. 2 (LatentPF) is SIR over latent states, and APF with one layer and beta = 1 is
     the same filter: equal particles for the same key."""

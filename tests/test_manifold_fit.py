@@ -235,6 +235,7 @@ def test_fit_stops_at_a_target_objective():
         fit_model(model, target=float("inf"))
 
 
+@pytest.mark.slow  # moved to the slow suite to keep the default one under 5 minutes (docs/testing.md, 2026-11-28)
 def test_fit_reports_progress_from_inside_the_loop(capsys):
     _, info = fit_model(_small_gplvm(), max_steps=20, tolerance=0.0, progress=True, report_every=5)
     err = capsys.readouterr().err
