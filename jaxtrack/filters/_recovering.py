@@ -26,19 +26,17 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..dynamics import AbstractDynamics, is_restartable, restart_states
-from ..likelihood import AbstractLikelihood, evidence_scorer
-from ._base import AbstractComposedFilter, FilterState, StepInfo, check_particles
-from ._estimators import AbstractEstimator, WeightedMean
-from ._refine import LangevinRefinement
+from ..dynamics import is_restartable, restart_states
+from ..likelihood import evidence_scorer
+from ._base import FilterState, StepInfo
 from ._resampling import get_resampler
-from ._sir import check_components, check_refinement, refine_and_report
+from ._sir import AbstractOneLayerFilter, refine_and_report
 from ._smc import check_layer_shapes, layer_keys, weigh_layer
 
 RESTART_STREAM = 1299709  # fold_in tag of a frame's restart key
 
 
-class RecoveringSIR(AbstractComposedFilter):
+class RecoveringSIR(AbstractOneLayerFilter):
     """``SIR`` with 004 sec. 6.1's two-start evidence and restarts (module docstring).
 
     Attributes:
@@ -50,29 +48,15 @@ class RecoveringSIR(AbstractComposedFilter):
             particles' mean pose, or "both", that and the previous estimate (004 sec. 6.1).
     """
 
-    dynamics: AbstractDynamics
-    likelihood: AbstractLikelihood
-    num_particles: int = eqx.field(static=True)
-    resampler: str = eqx.field(static=True, default="systematic")
-    estimator: AbstractEstimator = WeightedMean()
-    refine: LangevinRefinement | None = None
     lost_below: float | None = eqx.field(static=True, default=None)
     starts: str = eqx.field(static=True, default="prediction")
 
-    def __check_init__(self):
+    def __check_init__(self):  # the parts are checked by AbstractOneLayerFilter's
         if self.starts not in ("prediction", "both"):
             raise ValueError(f"starts must be 'prediction' or 'both', got {self.starts!r}")
-        check_particles(self.num_particles)
-        get_resampler(self.resampler)
-        check_components(self.dynamics, self.likelihood, self.estimator)
-        check_refinement(self.refine, self.dynamics)
         if self.lost_below is not None and not is_restartable(self.dynamics):
             raise ValueError(f"lost_below needs dynamics with a restart distribution; {type(self.dynamics).__name__} has none "
                              "(it is not an AbstractRestartableDynamics, all the way in)")
-
-    def init(self, key, initial_pose) -> FilterState:
-        particles = self.dynamics.init(key, initial_pose, self.num_particles)
-        return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         resample = get_resampler(self.resampler)

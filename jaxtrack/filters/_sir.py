@@ -19,9 +19,9 @@ from ._smc import layer_keys, smc_layer
 REFINE_STREAM = 104729  # fold_in tag of a frame's refinement key (without refinement, no key changes)
 
 
-class SIR(AbstractComposedFilter):
-    """Per frame: resample by the previous weights, ``s_t ~ dynamics.propose(s_{t-1})``, weight
-    by ``p(I_t | pose(s_t))`` times the proposal's correction, estimate.
+class AbstractOneLayerFilter(AbstractComposedFilter):
+    """A filter of one SMC layer per frame (``SIR``, ``RecoveringSIR``): its parts, their checks
+    and its initial state; subclasses say how a frame's step goes.
 
     Attributes:
         dynamics: the transition (``PoseRandomWalk``, ``ManifoldRegularisedTransition``, ...).
@@ -49,6 +49,12 @@ class SIR(AbstractComposedFilter):
     def init(self, key, initial_pose) -> FilterState:
         particles = self.dynamics.init(key, initial_pose, self.num_particles)
         return FilterState(particles, jnp.zeros(self.num_particles, particles.dtype))
+
+
+class SIR(AbstractOneLayerFilter):
+    """Per frame: resample by the previous weights, ``s_t ~ dynamics.propose(s_{t-1})``, weight
+    by ``p(I_t | pose(s_t))`` times the proposal's correction, estimate. Attributes: those of
+    ``AbstractOneLayerFilter``."""
 
     def step(self, key, state: FilterState, observation) -> tuple[FilterState, StepInfo]:
         def log_likelihood(s):
