@@ -183,16 +183,18 @@ def test_calibration_refuses_bad_settings_before_fitting(other_subject_scene):
         calibrate_body(likelihood, motion.pose[:2], observed, height=1750.0)
     with pytest.raises(ValueError, match="leading axis of 3 frames"):
         calibrate_body(likelihood, motion.pose[:3], observed)
+    with pytest.raises(ValueError, match="edge_factor must be in"):
+        calibrate_body(likelihood, motion.pose[:2], observed, edge_factor=2.0)
+    with pytest.raises(ValueError, match=r"neutral_dofs \['lclavicle_raise'\] are not dofs"):
+        calibrate_body(likelihood, motion.pose[:2], observed, neutral_dofs=("lclavicle_raise",))
 
 
 @pytest.mark.slow
 def test_calibration_recovers_known_limb_lengths_and_radii():
     """Clean 160x120 views in 4 cameras of a subject 8 % taller than the default with thighs 4 %
     longer and upper arms 4 % shorter, capsules 15 % thicker: from the default body and the first
-    frame's pose (on the default skeleton) alone, the calibration finds the forearms, hips and
-    shins within 1 cm, the spine and neck together within 1 cm (where the thorax sits between
-    them the silhouettes barely say), the upper arms, thighs and half shoulder width within 1.4
-    cm (the issue asks for 1 cm: missed), and the radii of the capsules that show within 10 %."""
+    frame's pose (on the default skeleton) alone, the calibration finds every limb within 1 cm
+    and the radii of the capsules that show within 10 %."""
     subject = SubjectStyle("Y", height_scale=1.08, limb_lengths=(("thigh", 1.04), ("upper_arm", 0.96)), radius_scale=1.15)
     motion = generate_motion("walk", subject, num_frames=4, fps=60.0, key=jax.random.key(0))
     rig = default_rig(160, 120)
@@ -206,13 +208,11 @@ def test_calibration_recovers_known_limb_lengths_and_radii():
     found = dict(zip(report.limb_names, report.lengths_after))
     errors_mm = {limb: round(float(1000 * (found[limb] - true[limb])), 1) for limb in true}
     print("limb length errors (mm):", errors_mm)
-    # Measured: forearm -3.9, hip -0.2, shin +3.9, spine + neck -2.7 mm (within the issue's 1 cm);
-    # upper arm -12.6, thigh -12.4, shoulder -10.4 mm (not: docs/body.md, "What is left").
-    for limb in ("forearm", "hip", "shin"):
+    # Measured (2026-11-28): spine -3.4, neck +4.7, shoulder -3.3, upper arm -4.1, forearm +0.4,
+    # hip -0.5, thigh -8.0, shin +2.5 mm. Before the clavicles were held at rest and the edge
+    # sharpened, the upper arms, thighs and shoulders were 10-13 mm off (docs/body.md).
+    for limb in true:
         assert abs(errors_mm[limb]) <= 10.0, errors_mm
-    assert abs(errors_mm["spine"] + errors_mm["neck"]) <= 10.0, errors_mm
-    for limb in ("shoulder", "upper_arm", "thigh"):
-        assert abs(errors_mm[limb]) <= 14.0, errors_mm
     visible = [i for i, n in enumerate(default.capsule_names) if n not in ("lclavicle", "rclavicle", "neck")]
     np.testing.assert_allclose(report.radii_after[visible], np.asarray(motion.body.radii)[visible], rtol=0.10)
     assert report.cost_after < report.cost_before

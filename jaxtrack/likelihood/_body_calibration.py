@@ -25,12 +25,21 @@ temperature (000 eq. 12 times 100) a 4-frame clean 160x120 scene holds about one
 5 cm off, less than the proportions' prior, and the lengths stayed where they started; at 30 the
 arms and legs came within 1-2 cm (the notes in ``docs/body.md``).
 
+Two things a start pose and the tracker's soft edge would otherwise bias (docs/body.md, "The
+thorax's height and the soft edge"):
+
+- the clavicles (every ``*clavicle*`` dof, ``neutral_dofs``) start at the rest posture and are held
+  near it (sd ``neutral_sd`` 0.1 rad), not near the start: a start pose solved on the default
+  skeleton raises them (by 0.35 rad for a spine 12 % longer) to reach the person's shoulders, and
+  a prior around that start kept the thorax low (the spine 35-39 mm short, the neck as long);
+- the silhouettes are fitted with a soft edge half as wide as the tracker's (``edge_factor``): at
+  the tracker's width a clean scene's cost is lower away from the true body than at it.
+
 Adam on the whitened parameters (each divided by its prior's sd), from the prior's centre. (A
 coarse-to-fine schedule, the soft edges 4, 2 and then 1 times the likelihood's width, changed
 nothing at 160x120 and made 80x60 worse: its blurred first stage moved the legs away.) Bone lengths and poses
 trade against each other in one view; in several calibrated views the scale is fixed by the
-cameras. What the silhouettes barely separate is where the thorax sits between the pelvis and
-the head (the spine against the neck): that split is left mostly to the prior.
+cameras.
 """
 
 from __future__ import annotations
@@ -140,6 +149,9 @@ def calibrate_body(
     pose_sd_rad: float = 0.3,
     data_weight: float = 30.0,
     max_cost: float | None = MAX_COST,
+    neutral_dofs: tuple[str, ...] | None = None,
+    neutral_sd: float = 0.1,
+    edge_factor: float = 0.5,
 ):
     """Fit the body's limb lengths and radii, and the frames' poses, to the first frames' images.
 
@@ -159,6 +171,13 @@ def calibrate_body(
         radius_sd: prior sd of each log radius around its start.
         pose_sd_m, pose_sd_rad: prior sds of the poses around their start.
         data_weight: the log-likelihood's weight against the priors (module docstring).
+        neutral_dofs: rotational dofs (``Skeleton.dof_names``) started at 0, the rest posture, with
+            the prior sd ``neutral_sd`` around it instead of around the start: the dofs a start pose
+            solved on another skeleton bends to reach the person's joints. None: every dof whose
+            name holds ``clavicle`` (module docstring).
+        neutral_sd: their prior sd, radians.
+        edge_factor: every term with a soft edge (an ``edge_width``: the silhouettes) is fitted with
+            its edge this many times as wide (module docstring); the returned likelihood keeps its own.
         max_cost: the highest final cost (``-mean_f ln p / scale``) of a converged calibration,
             on 000 eq. 12's scale (``MAX_COST``); None for a likelihood on another scale (the
             keypoints' alone): then only a rising cost and implausible lengths are refused.
@@ -184,8 +203,11 @@ def calibrate_body(
     leaves = jax.tree.leaves(observations)
     if not leaves or any(np.shape(leaf)[:1] != (frames,) for leaf in leaves):
         raise ValueError(f"observations must have a leading axis of {frames} frames (one per pose)")
-    if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, proportion_sd, radius_sd, pose_sd_m, pose_sd_rad) <= 0:
+    if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, proportion_sd, radius_sd, pose_sd_m, pose_sd_rad,
+                                                  neutral_sd) <= 0:
         raise ValueError("steps, learning_rate and every prior sd must be positive")
+    if not 0 < edge_factor <= 1:
+        raise ValueError(f"edge_factor must be in (0, 1], got {edge_factor}")
     names, limb_of, directions, start_lengths = _limb_structure(body)
     if height is not None:
         height = check_height(height)
@@ -198,6 +220,11 @@ def calibrate_body(
     radius0 = np.array([log_radii[groups == g].mean() for g in range(groups.max() + 1)])
     pose_sd = np.full(D, pose_sd_rad)
     pose_sd[:3] = pose_sd_m
+    neutral = _neutral_columns(body.skeleton, neutral_dofs)
+    if neutral.size:
+        poses = poses.copy()
+        poses[:, neutral] = 0.0
+        pose_sd[neutral] = neutral_sd
     dtype = body.radii.dtype
     cast = lambda a: jnp.asarray(a, dtype)  # noqa: E731
     # Prior centres (the start too) and sds of the whitened parameters.
@@ -206,8 +233,8 @@ def calibrate_body(
            "radius": cast(np.full(len(radius0), radius_sd)), "pose": cast(pose_sd)}
     structure = (cast(directions), jnp.asarray(limb_of), jnp.asarray(groups), cast(np.log(reference)))
     u0 = jax.tree.map(jnp.zeros_like, prior)
-    u, trace, costs = _fit(likelihood, body, structure, observations, prior, sds, jnp.asarray(data_weight, dtype), u0, steps,
-                           learning_rate)
+    u, trace, costs = _fit(_sharpened(likelihood, edge_factor), body, structure, observations, prior, sds,
+                           jnp.asarray(data_weight, dtype), u0, steps, learning_rate)
     fitted = _unwhiten(body, prior, sds, u)
     trace = np.asarray(trace)
     before, after = float(costs[0]), float(costs[-1])
@@ -233,6 +260,28 @@ def calibrate_body(
         trace=np.asarray(trace), height=height,
     )
     return with_body(likelihood, new_body), np.asarray(fitted["pose"], np.float64), report
+
+
+def _sharpened(likelihood, factor: float):
+    """The likelihood with every term's soft ``edge_width`` times ``factor``."""
+    has_edge = lambda x: isinstance(x, AbstractLikelihood) and hasattr(x, "edge_width")  # noqa: E731
+
+    def sharpen(term):
+        return eqx.tree_at(lambda t: t.edge_width, term, term.edge_width * factor) if has_edge(term) else term
+
+    return jax.tree.map(sharpen, likelihood, is_leaf=has_edge) if factor != 1 else likelihood
+
+
+def _neutral_columns(skeleton: Skeleton, names: tuple[str, ...] | None) -> np.ndarray:
+    """Pose columns of the named rotational dofs (every ``*clavicle*`` dof for None)."""
+    dofs = tuple(skeleton.dof_names)
+    if names is None:
+        names = tuple(n for n in dofs if "clavicle" in n)
+    unknown = [n for n in names if n not in dofs]
+    if unknown:
+        raise ValueError(f"neutral_dofs {unknown} are not dofs of the skeleton (its dofs: {', '.join(dofs)})")
+    offset = skeleton.num_dofs - len(dofs)  # the root's translation comes first
+    return np.array([offset + dofs.index(n) for n in names], dtype=int)
 
 
 def _body(body: BodyModel, structure, params) -> BodyModel:
