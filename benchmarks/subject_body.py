@@ -115,7 +115,7 @@ def main():
                     test = scene_seq.replace(**drop)
                     body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "true": "auto"}[condition]
                     try:
-                        scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window)
+                        scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance)
                     except ConfigurationError as err:  # a calibration that did not converge: reported, not tracked
                         row["scenes"][gait] = {"refused": str(err)}
                         print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)

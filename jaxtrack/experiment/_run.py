@@ -172,8 +172,11 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     validation_poses = [motion_subjects[n].poses for n in validation_names]
     donors = [(name, motion_subjects[name], seq.subject) for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]]
     window = shared_window(test, config.frames, config.resolution)
+    # The ankle's clearance above the floor in the validation motion: the floor's prior while a body is
+    # calibrated from the images, and the tracker's ground prior.
+    clearance = motion_clearance(validation, validation_poses, skeletons=[motion_subjects[n].body.skeleton for n in validation_names])
     scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, window=window, donors=donors, say=say,
-                           **config.scene_options())
+                           ground_clearance=clearance, **config.scene_options())
               for seq, name in zip(test, test_names)]
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
@@ -187,7 +190,6 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
         say(f"{name}: body {scene.body_source}{f' ({scene.subject.detail})' if scene.subject.detail else ''}; the start pose is "
             f"{scene.start_error_mm:.1f} mm from frame 0's ground truth")
     if config.ground_prior:
-        clearance = motion_clearance(validation, validation_poses, skeletons=[motion_subjects[n].body.skeleton for n in validation_names])
         scenes = [add_ground_prior(scene, clearance) for scene in scenes]
         for scene, name in zip(scenes, test_names):
             prior = scene.ground_prior

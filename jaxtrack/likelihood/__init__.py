@@ -41,6 +41,9 @@ from ._edges import EdgeForegroundLikelihood as EdgeForegroundLikelihood
 from ._edges import make_edge_foreground_likelihood as make_edge_foreground_likelihood
 from ._edges import maps_from_images as maps_from_images
 from ._edges import maps_from_silhouettes as maps_from_silhouettes
+from ._floor_band import FloorBandSilhouette as FloorBandSilhouette
+from ._floor_band import floor_band_weights as floor_band_weights
+from ._floor_band import floor_points as floor_points
 from ._ground import GroundPlanePrior as GroundPlanePrior
 from ._ground import ground_clearance as ground_clearance
 from ._ground import make_ground_prior as make_ground_prior

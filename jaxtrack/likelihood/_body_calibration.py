@@ -35,6 +35,12 @@ thorax's height and the soft edge"):
 - the silhouettes are fitted with a soft edge half as wide as the tracker's (``edge_factor``): at
   the tracker's width a clean scene's cost is lower away from the true body than at it.
 
+and one thing a capsule body cannot explain (docs/body.md, "The floor band"): the feet, and the
+shadows background subtraction segments with them. With a floor prior in the likelihood the
+silhouettes are fitted without the floor around the ankles (``floor_band``,
+``FloorBandSilhouette``); the floor's prior then holds the ankles' height, where whole
+silhouettes stretched the shins 4-8 cm down into the shadows.
+
 Adam on the whitened parameters (each divided by its prior's sd), from the prior's centre. (A
 coarse-to-fine schedule, the soft edges 4, 2 and then 1 times the likelihood's width, changed
 nothing at 160x120 and made 80x60 worse: its blurred first stage moved the legs away.) Bone lengths and poses
@@ -56,8 +62,16 @@ from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_length
 from ..errors import ConfigurationError
 from ._base import AbstractLikelihood
 from ._calibration import symmetric_groups
+from ._floor_band import FloorBandSilhouette
+from ._ground import GroundPlanePrior
+from ._sampled import SampledSilhouetteLikelihood
+from ._silhouette import SilhouetteLikelihood
 
 PLAUSIBLE_FACTOR = (0.75, 1.33)  # a fitted limb length outside this range of its reference: not converged
+# The floor band's reach around each ankle's ground point (metres): a foot reaches 20-25 cm ahead of
+# the ankle and its shadow further; at 0.3 the noisy test walk's shins were still 2 cm long, at 0.45 within 1
+# (docs/body.md, "The floor band").
+FLOOR_BAND_RADIUS = 0.45
 MAX_COST = 0.5  # 000 eq. 12's cost (mean over frames) a converged calibration ends below: clean 0.1, noisy 80x60 0.2-0.3
 
 
@@ -143,7 +157,7 @@ def calibrate_body(
     learning_rate: float = 0.05,
     scale_sd: float = 0.1,
     scale_sd_height: float = 0.02,
-    proportion_sd: float = 0.06,
+    proportion_sd: float | dict[str, float] = 0.06,
     radius_sd: float = 0.15,
     pose_sd_m: float = 0.1,
     pose_sd_rad: float = 0.3,
@@ -152,6 +166,7 @@ def calibrate_body(
     neutral_dofs: tuple[str, ...] | None = None,
     neutral_sd: float = 0.1,
     edge_factor: float = 0.5,
+    floor_band: float | None = FLOOR_BAND_RADIUS,
 ):
     """Fit the body's limb lengths and radii, and the frames' poses, to the first frames' images.
 
@@ -167,7 +182,8 @@ def calibrate_body(
         steps, learning_rate: Adam on the whitened parameters.
         scale_sd, scale_sd_height: prior sd of the common log scale of every limb, without and
             with a stated height.
-        proportion_sd: prior sd of each limb's own log length around the scaled reference.
+        proportion_sd: prior sd of each limb's own log length around the scaled reference; a dict
+            sets it per limb (``body.LIMB_SEGMENTS``' names), the others keeping 0.06.
         radius_sd: prior sd of each log radius around its start.
         pose_sd_m, pose_sd_rad: prior sds of the poses around their start.
         data_weight: the log-likelihood's weight against the priors (module docstring).
@@ -178,6 +194,11 @@ def calibrate_body(
         neutral_sd: their prior sd, radians.
         edge_factor: every term with a soft edge (an ``edge_width``: the silhouettes) is fitted with
             its edge this many times as wide (module docstring); the returned likelihood keeps its own.
+        floor_band: with a ``GroundPlanePrior`` in the likelihood (the floor then holds the ankles),
+            every silhouette term is fitted without the pixels whose ray meets the floor within this
+            many metres of an ankle's ground point (``FloorBandSilhouette``: the feet and their
+            shadows, which a capsule body can only explain with longer shins); None, or no floor
+            prior: whole silhouettes. The returned likelihood scores whole silhouettes.
         max_cost: the highest final cost (``-mean_f ln p / scale``) of a converged calibration,
             on 000 eq. 12's scale (``MAX_COST``); None for a likelihood on another scale (the
             keypoints' alone): then only a rising cost and implausible lengths are refused.
@@ -203,12 +224,15 @@ def calibrate_body(
     leaves = jax.tree.leaves(observations)
     if not leaves or any(np.shape(leaf)[:1] != (frames,) for leaf in leaves):
         raise ValueError(f"observations must have a leading axis of {frames} frames (one per pose)")
-    if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, proportion_sd, radius_sd, pose_sd_m, pose_sd_rad,
+    names, limb_of, directions, start_lengths = _limb_structure(body)
+    proportion_sds = _per_limb(proportion_sd, names)
+    if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, *proportion_sds, radius_sd, pose_sd_m, pose_sd_rad,
                                                   neutral_sd) <= 0:
         raise ValueError("steps, learning_rate and every prior sd must be positive")
     if not 0 < edge_factor <= 1:
         raise ValueError(f"edge_factor must be in (0, 1], got {edge_factor}")
-    names, limb_of, directions, start_lengths = _limb_structure(body)
+    if floor_band is not None and not (np.isfinite(floor_band) and 0 < floor_band <= 2):
+        raise ValueError(f"floor_band must be a reach on the floor in metres, in (0, 2], or None; got {floor_band}")
     if height is not None:
         height = check_height(height)
         reference = np.array([limb_lengths_for_height(height)[n] for n in names])
@@ -229,11 +253,14 @@ def calibrate_body(
     cast = lambda a: jnp.asarray(a, dtype)  # noqa: E731
     # Prior centres (the start too) and sds of the whitened parameters.
     prior = {"scale": cast(np.zeros(1)), "proportion": cast(np.zeros(len(names))), "radius": cast(radius0), "pose": cast(poses)}
-    sds = {"scale": cast(np.full(1, sd_scale)), "proportion": cast(np.full(len(names), proportion_sd)),
+    sds = {"scale": cast(np.full(1, sd_scale)), "proportion": cast(proportion_sds),
            "radius": cast(np.full(len(radius0), radius_sd)), "pose": cast(pose_sd)}
     structure = (cast(directions), jnp.asarray(limb_of), jnp.asarray(groups), cast(np.log(reference)))
     u0 = jax.tree.map(jnp.zeros_like, prior)
-    u, trace, costs = _fit(_sharpened(likelihood, edge_factor), body, structure, observations, prior, sds,
+    fitted_to = _sharpened(likelihood, edge_factor)
+    if floor_band is not None:
+        fitted_to = _without_floor_band(fitted_to, floor_band)
+    u, trace, costs = _fit(fitted_to, body, structure, observations, prior, sds,
                            jnp.asarray(data_weight, dtype), u0, steps, learning_rate)
     fitted = _unwhiten(body, prior, sds, u)
     trace = np.asarray(trace)
@@ -270,6 +297,34 @@ def _sharpened(likelihood, factor: float):
         return eqx.tree_at(lambda t: t.edge_width, term, term.edge_width * factor) if has_edge(term) else term
 
     return jax.tree.map(sharpen, likelihood, is_leaf=has_edge) if factor != 1 else likelihood
+
+
+def _per_limb(sd, names: tuple[str, ...]) -> np.ndarray:
+    """(8,) prior sds of the limbs' proportions from one number or a dict by limb name (0.06 for the others)."""
+    if not isinstance(sd, dict):
+        return np.full(len(names), float(sd))
+    unknown = sorted(set(sd) - set(names))
+    if unknown:
+        raise ValueError(f"proportion_sd names {unknown}, which are not limbs (the limbs: {', '.join(names)})")
+    return np.array([float(sd.get(n, 0.06)) for n in names])
+
+
+def _without_floor_band(likelihood, radius: float):
+    """The likelihood with every silhouette term scored without its floor band (``FloorBandSilhouette``)
+    when it holds a ``GroundPlanePrior`` (whose floor it is), else as it is."""
+    is_term = lambda x: isinstance(x, (SilhouetteLikelihood, SampledSilhouetteLikelihood, GroundPlanePrior))  # noqa: E731
+    floors = [x for x in jax.tree.leaves(likelihood, is_leaf=is_term) if isinstance(x, GroundPlanePrior)]
+    if not floors:
+        return likelihood
+    floor_height = floors[0].floor_height
+    dtype = body_of(likelihood).radii.dtype
+
+    def band(term):
+        if isinstance(term, (SilhouetteLikelihood, SampledSilhouetteLikelihood)):
+            return FloorBandSilhouette(silhouette=term, radius=jnp.asarray(radius, dtype), floor_height=jnp.asarray(floor_height, dtype))
+        return term
+
+    return jax.tree.map(band, likelihood, is_leaf=is_term)
 
 
 def _neutral_columns(skeleton: Skeleton, names: tuple[str, ...] | None) -> np.ndarray:

@@ -150,7 +150,7 @@ def silhouette_statistics_windowed(
 
 
 def bidirectional_silhouette_cost(
-    area: Float[Array, "*batch views"], overlap: Float[Array, "*batch views"], observed_area: Float[Array, " views"]
+    area: Float[Array, "*batch views"], overlap: Float[Array, "*batch views"], observed_area: Float[Array, "*#batch views"]
 ) -> Float[Array, "*batch views"]:
     """Per-view cost ``(A - B) / A + (N - B) / N`` of paper 000 eq. 12 (in [0, 2])."""
     positive = area > 0

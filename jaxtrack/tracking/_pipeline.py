@@ -675,14 +675,16 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
         raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
     layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
     root_height = float(np.mean(validation_subject.poses[:, layout.index("root_z")]))
+    validation_poses = validation_subject.poses
+    clearance = motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton])
     scene = prepare_test(sequence, name, key=key, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
-                         start=spec.start, start_model=model, root_height=root_height, **spec.scene_options())
+                         start=spec.start, start_model=model, root_height=root_height, ground_clearance=clearance,
+                         **spec.scene_options())
     say(f"{name}: body {scene.body_source}"
         + ("" if np.isnan(scene.start_error_mm) else f"; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth"))
     starts = header.get("sequence_starts")
-    validation_poses = validation_subject.poses
     if spec.ground_prior:
-        scene = add_ground_prior(scene, motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton]))
+        scene = add_ground_prior(scene, clearance)
     motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts), stored=header.get("extra"))
     fit_key, run_root = tracker_keys(seed, method)
     tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, spec.tracking_budget,
