@@ -23,6 +23,8 @@ from jaxtrack.likelihood import (
 )
 from jaxtrack.render import hard_silhouettes
 
+pytestmark = pytest.mark.xdist_group("floor_band")  # one worker renders the scene (--dist loadgroup)
+
 
 @pytest.fixture(scope="module")
 def standing():
