@@ -14,6 +14,9 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   default body (``likelihood.calibrate_body``), then frame 0's joints solved on the calibrated
   skeleton for the start (the file's joints are used for nothing else); a calibration that does
   not converge is reported and that scene not tracked;
+- ``refined``: ``calibrated``, then one run of ``--refine-with`` (MRPF) tracks the scene and the
+  body is calibrated again on 12 tracked frames spread over the sequence (``tracking.refine_body``),
+  the start re-solved on the refined skeleton; every tracker then tracks with that body;
 - ``true``: the subject's own skeleton and capsule radii written into the file.
 
     taskset -c 0,1 python benchmarks/subject_body.py --runs 5 --budget 500 --json subject_body.json
@@ -32,7 +35,7 @@ from bench_output import add_output_arguments, pin_threads, write_json
 LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm", 0.87), ("forearm", 1.13), ("hip", 0.88),
                 ("thigh", 1.12), ("shin", 0.86))
 RADIUS_FACTOR = 1.2
-CONDITIONS = ("default", "joints", "calibrated", "true")
+CONDITIONS = ("default", "joints", "calibrated", "refined", "true")
 SETTINGS = {"4x160x120": (4, 160, 120), "3x80x60": (3, 80, 60)}
 
 
@@ -46,6 +49,8 @@ def main():
     parser.add_argument("--renderers", nargs="+", default=["capsules", "solid"], choices=["capsules", "solid"])
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS))
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--refine-with", default="mrpf", help="the tracker whose run the refined condition calibrates on")
+    parser.add_argument("--refine-frames", type=int, default=12, help="frames of the refined condition's second pass")
     add_output_arguments(parser, plot="draw frame 0 of the walk in the first setting's views, rendered by both renderers, "
                                       "to this PNG (docs/figures/solid_body.png) before the runs")
     parser.add_argument("--plot-only", action="store_true", help="draw the figure and stop")
@@ -69,6 +74,7 @@ def main():
         motion_clearance,
         motion_data,
         prepare_test,
+        refine_body,
         sequence_poses,
         track_runs,
         tracker_keys,
@@ -83,7 +89,8 @@ def main():
         if args.plot_only:
             return
     train, validation, _, _ = demo_sequences(key)
-    config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, fit_steps=100, seed=args.seed)
+    fitted_methods = list(dict.fromkeys([*args.methods, *([args.refine_with] if "refined" in args.conditions else [])]))
+    config = ExperimentConfig(methods=tuple(fitted_methods), budget=args.budget, runs=args.runs, fit_steps=100, seed=args.seed)
     train_poses = [sequence_poses(s, "train", key=key) for s in train]
     validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
     motions = {None: motion_data(train_poses, validation_poses)}
@@ -91,10 +98,16 @@ def main():
         model, _, starts = fit_manifold(train_poses, latent_dim, config.fit_steps, kind=kind)
         motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
     fitted, roots = {}, {}
-    for method in args.methods:
+    for method in fitted_methods:
         fit_key, roots[method] = tracker_keys(args.seed, method)
         fitted[method] = fit_tracker(get_tracker(method), fit_key, motions[config.manifold_spec_of(method)])
     clearance = motion_clearance(validation, validation_poses)
+
+    def make_tracker(method, scene):
+        return build_tracker(get_tracker(method), fitted[method], scene.likelihood, config.tracking_budget,
+                             velocity_from=validation_poses if config.velocity_of(method) else None,
+                             residual_from=validation_poses, residual_scale=config.residual_of(method),
+                             residual_decay=config.residual_decay_of(method))
 
     rows = []
     for setting in args.settings:
@@ -113,7 +126,8 @@ def main():
                     keep = ("skeleton_offsets", "capsule_radii") if condition == "true" else ()
                     drop = {k: None for k in ("pose", "pose_layout", "skeleton_offsets", "capsule_radii") if k not in keep}
                     test = scene_seq.replace(**drop)
-                    body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "true": "auto"}[condition]
+                    body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "refined": "calibrate",
+                            "true": "auto"}[condition]
                     try:
                         scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance)
                     except ConfigurationError as err:  # a calibration that did not converge: reported, not tracked
@@ -121,6 +135,15 @@ def main():
                         print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)
                         continue
                     scene = add_ground_prior(scene, clearance)
+                    if condition == "refined":
+                        tracker = make_tracker(args.refine_with, scene)
+                        first, _, _ = track_runs(tracker, jax.random.fold_in(roots[args.refine_with], 10_000)[None], scene)
+                        try:
+                            scene = refine_body(scene, first[0], key=key, frames=args.refine_frames, start_joints=scene.truth_joints[0])
+                        except ConfigurationError as err:
+                            row["scenes"][gait] = {"refused": str(err)}
+                            print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)
+                            continue
                     info = {"body": scene.body_source, "start_error_mm": scene.start_error_mm}
                     if scene.body_calibration is not None:
                         info["calibration"] = scene.body_calibration.summary()
@@ -128,11 +151,7 @@ def main():
                         info["ik_residual_frame0_mm"] = float(np.mean(scene.subject.residual_mm[0]))
                     row["scenes"][gait] = info
                     for method in args.methods:
-                        recipe = get_tracker(method)
-                        tracker = build_tracker(recipe, fitted[method], scene.likelihood, config.tracking_budget,
-                                                velocity_from=validation_poses if config.velocity_of(method) else None,
-                                                residual_from=validation_poses, residual_scale=config.residual_of(method),
-                                                residual_decay=config.residual_decay_of(method))
+                        tracker = make_tracker(method, scene)
                         keys = jax.numpy.stack([jax.random.fold_in(roots[method], r) for r in range(args.runs)])
                         _, joints, _ = track_runs(tracker, keys, scene)
                         errors = [float(mean_joint_error_mm(j, scene.truth_joints)) for j in joints]

@@ -996,6 +996,10 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
                              "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
                              "(default: on)")
     _body_arguments(parser, sequences)
+    parser.add_argument("--refine-body", action=argparse.BooleanOptionalAction, default=True,
+                        help="where the body is calibrated from the images, track once, calibrate it again on 12 tracked frames "
+                             "spread over the sequence (the knees and elbows bent), then track with the refined body "
+                             "(default: on; --no-refine-body: the first frames' calibration alone)")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                              "(e.g. 80x60 for 320x240 data)")
@@ -1027,7 +1031,7 @@ def _spec_fields(args) -> dict:
     return {
         "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood, "likelihood_options": _likelihood_options(args),
         "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
-        "body": _body_choice(args), "height": args.height, "resolution": args.resolution,
+        "body": _body_choice(args), "height": args.height, "refine_body": args.refine_body, "resolution": args.resolution,
         "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
         "velocity": args.velocity, "residual": args.residual, "residual_decay": args.residual_decay,
     }

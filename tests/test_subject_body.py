@@ -19,7 +19,7 @@ from jaxtrack.experiment import ExperimentConfig, run_experiment
 from jaxtrack.io import Sequence, load_sequence, save_sequence
 from jaxtrack.likelihood import calibrate_body, check_silhouettes, default_pixel_samples, make_ground_prior, make_silhouette_likelihood
 from jaxtrack.manifold import fit_spectral
-from jaxtrack.tracking import limb_lengths_of, method_problems, prepare_test, subject_body
+from jaxtrack.tracking import limb_lengths_of, method_problems, prepare_test, refine_body, spread_frames, subject_body
 
 from helpers import small_experiment_sequences
 
@@ -255,6 +255,68 @@ def test_calibration_under_foot_shadows_leaves_the_floor_band_out():
     shin_whole = 1000 * (dict(zip(whole.limb_names, whole.lengths_after))["shin"] - true["shin"])
     print(f"whole silhouettes: shin {shin_whole:+.1f} mm")
     assert shin_whole >= 25.0
+
+
+def test_spread_frames_and_refine_body_refuse_bad_input_before_fitting(other_subject_scene):
+    np.testing.assert_array_equal(spread_frames(40, 8), [0, 6, 11, 17, 22, 28, 33, 39])
+    np.testing.assert_array_equal(spread_frames(5, 8), [0, 1, 2, 3, 4])
+    np.testing.assert_array_equal(spread_frames(1, 8), [0])
+    with pytest.raises(ValueError, match="at least one frame and one pick"):
+        spread_frames(40, 0)
+    _, full, _ = other_subject_scene
+    scene = prepare_test(full, "x.npz", key=jax.random.key(0))
+    poses = np.asarray(scene.truth_poses)
+    with pytest.raises(ValueError, match=r"one run's \(8, 32\) estimates on this scene, got \(7, 32\)"):
+        refine_body(scene, poses[:7], key=jax.random.key(0))
+    bad = poses.copy()
+    bad[3, 5] = np.nan
+    with pytest.raises(ValueError, match="tracked_poses contain NaN"):
+        refine_body(scene, bad, key=jax.random.key(0))
+
+
+@pytest.mark.slow
+def test_a_second_pass_on_frames_over_the_cycle_refines_the_limb_lengths():
+    """The subject 10-14 % off the default, its walk (40 frames at 60 Hz) in 4 noisy views at
+    160x120: the first pass (the first 4 frames) then a second on 12 frames spread over the walk at
+    poses near the truth (the truth's angles, as a good tracker's) brings the limbs nearer the
+    subject's on the whole, and every limb within 2 cm."""
+    motion = generate_motion("walk", SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=1.2), num_frames=40, fps=60.0,
+                             key=jax.random.key(5))
+    scene_seq = build_scene(jax.random.key(6), motion, default_rig(160, 120), SilhouetteNoise())
+    first = prepare_test(scene_seq.replace(**dict.fromkeys(JOINT_KEYS)), "walk", key=jax.random.key(0), body="calibrate",
+                         ground_clearance=0.08)
+    true = limb_lengths_of(motion.body)
+
+    def errors(body):
+        return {n: round(float(1000 * (v - true[n])), 1) for n, v in limb_lengths_of(body).items()}
+
+    # a tracker's estimates: the truth's poses solved on the first pass's skeleton
+    tracked = inverse_kinematics(scene_seq.joints3d, skeleton=first.body.skeleton, key=jax.random.key(1)).pose
+    second = refine_body(first, np.asarray(tracked), key=jax.random.key(2), start_joints=first.truth_joints[0],
+                         ground_clearance=0.08)
+    before, after = errors(first.body), errors(second.body)
+    print("limb length errors (mm), first pass:", before, "second pass:", after)
+    assert np.mean(np.abs(list(after.values()))) < np.mean(np.abs(list(before.values())))
+    assert max(abs(v) for v in after.values()) <= 20.0, after
+    assert second.body_calibration.poses_after.shape == (12, tracked.shape[1])  # REFINE_FRAMES
+    assert second.start_error_mm < 10.0
+    np.testing.assert_allclose(np.asarray(second.likelihood.body.skeleton.offsets), np.asarray(second.body.skeleton.offsets))
+
+
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
+def test_an_experiment_refines_a_calibrated_body_on_a_first_run(tmp_path, other_subject_scene):
+    """``refine_body=True``: the calibrated body calibrated again on a first run of the first
+    method, the tracking done with it, both bodies in results.json."""
+    train, validation, _ = small_experiment_sequences()
+    _, _, joints_only = other_subject_scene
+    config = ExperimentConfig(methods=("sir",), budget=40, layers=2, runs=1, frames=6, fit_steps=2, body="calibrate",
+                              refine_body=True)
+    results = run_experiment(train, validation, [joints_only], config, out_dir=str(tmp_path), progress=False, animations=False)
+    written = json.loads((tmp_path / "results.json").read_text())["bodies"]["test0"]
+    assert written["source"] == "calibrated" and written["refined_with"] == "sir"
+    assert written["first_pass"]["source"] == "calibrated" and written["limb_lengths_mm"] != written["first_pass"]["limb_lengths_mm"]
+    assert written["calibration"]["frames"] == 6  # the second pass's: every frame of the 6 tracked
+    assert np.isfinite(results["sequences"]["test0"]["sir"]["error_mm_mean"])
 
 
 def test_the_command_line_refuses_a_height_that_is_not_a_persons(tmp_path, capsys):

@@ -36,6 +36,7 @@ from ..tracking import (
     prepare_test,
     subject_body,
     track,
+    track_and_refine_body,
     track_runs,
     tracker_keys,
 )
@@ -129,6 +130,7 @@ class ExperimentInputs:
         motion_subjects: per training and validation take's name, its ``SubjectBody``.
         scenes: the prepared test scenes (``tracking.TestScene``), in the order of ``test_names``.
         test_names: the test sequences' display names.
+        clearance: the ankle's clearance above the floor in the validation motion (metres).
     """
 
     train_poses: list
@@ -136,6 +138,7 @@ class ExperimentInputs:
     motion_subjects: dict
     scenes: list
     test_names: list
+    clearance: float = 0.06
 
 
 def _new_results(config: ExperimentConfig) -> dict:
@@ -195,7 +198,7 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
             prior = scene.ground_prior
             results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": clearance,
                                              "tolerance_m": float(prior.tolerance), "floor_height_m": float(prior.floor_height)}
-    return ExperimentInputs(train_poses, validation_poses, motion_subjects, scenes, test_names)
+    return ExperimentInputs(train_poses, validation_poses, motion_subjects, scenes, test_names, clearance)
 
 
 def _refuse(results: dict, method: str, why: str) -> None:
@@ -267,16 +270,38 @@ def _record_dynamics(tracker, method: str, config: ExperimentConfig, results: di
         results["velocity"][method] = {"entries": moving.size, "rest_probability": moving.rest_probability, **spreads}
 
 
+def _build(method: str, fitted: dict, likelihood, config: ExperimentConfig, validation_poses):
+    return build_tracker(get_tracker(method), fitted[method], likelihood, config.tracking_budget,
+                         velocity_from=validation_poses if config.velocity_of(method) else None,
+                         residual_from=validation_poses, residual_scale=config.residual_of(method),
+                         residual_decay=config.residual_decay_of(method))
+
+
+def _refined(scene, name: str, method: str, fitted: dict, config: ExperimentConfig, inputs: ExperimentInputs, results: dict, say):
+    """``config.refine_body``: the calibrated body refined on one run of ``method``
+    (``tracking.track_and_refine_body``), recorded in ``results["bodies"][name]``."""
+    _, run_root = tracker_keys(config.seed, method)
+    tracker = _build(method, fitted, scene.likelihood, config, inputs.validation_poses)
+    first = scene.body_summary()
+    scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=config.start == "truth",
+                                  ground_clearance=inputs.clearance, name=name)
+    results["bodies"][name] = {**scene.body_summary(), "refined_with": method, "first_pass": first}
+    say(f"{name}: body refined on a {method_label(method)} run's frames spread over the sequence; the start pose is "
+        f"{scene.start_error_mm:.1f} mm from frame 0's ground truth")
+    return scene
+
+
 def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConfig, results: dict, *, out_dir=None,
                   say=print) -> None:
     """Stage 3 of ``run_experiment``: each fitted method built for each test scene and run
     ``config.runs`` times with its own keys; the errors (000 eq. 31), curves, per-part errors,
     frames/s, ESS and degenerate fractions recorded in ``results`` (written to ``out_dir`` after
     each method, so an interruption loses the one in progress at most)."""
-    budget = config.tracking_budget
     validation_poses = inputs.validation_poses
     methods = [m for m in config.methods if m in fitted]
-    for scene, name in zip(inputs.scenes, inputs.test_names):
+    for index, (scene, name) in enumerate(zip(inputs.scenes, inputs.test_names)):
+        if config.refine_body and scene.body_calibration is not None and methods:
+            scene = inputs.scenes[index] = _refined(scene, name, methods[0], fitted, config, inputs, results, say)
         if scene.shape_calibration is not None:
             report = scene.shape_calibration
             results["shape_calibration"][name] = {
@@ -288,9 +313,7 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
         per_method = results["sequences"][name] = {}
         for method in methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
-            tracker = build_tracker(get_tracker(method), fitted[method], scene.likelihood, budget, velocity_from=velocity_from,
-                                    residual_from=validation_poses, residual_scale=config.residual_of(method),
-                                    residual_decay=config.residual_decay_of(method))
+            tracker = _build(method, fitted, scene.likelihood, config, validation_poses)
             _record_dynamics(tracker, method, config, results, velocity_from is not None)
             _, run_root = tracker_keys(config.seed, method)
             errors, curves, group_errors, times, ess, degenerate, restarts, estimates = [], [], [], [], [], [], [], None

@@ -60,6 +60,7 @@ from ..likelihood import (
     with_body,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
+from ._refine_body import REFINE_FRAMES, track_and_refine_body
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
@@ -687,8 +688,19 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
         scene = add_ground_prior(scene, clearance)
     motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts), stored=header.get("extra"))
     fit_key, run_root = tracker_keys(seed, method)
-    tracker = build_tracker(recipe, fit_tracker(recipe, fit_key, motion), scene.likelihood, spec.tracking_budget,
-                            velocity_from=motion.validation if spec.velocity_of(method) else None,
-                            residual_from=motion.validation, residual_scale=spec.residual_of(method),
-                            residual_decay=spec.residual_decay_of(method))
+    fitted = fit_tracker(recipe, fit_key, motion)
+
+    def build(likelihood):
+        return build_tracker(recipe, fitted, likelihood, spec.tracking_budget,
+                             velocity_from=motion.validation if spec.velocity_of(method) else None,
+                             residual_from=motion.validation, residual_scale=spec.residual_of(method),
+                             residual_decay=spec.residual_decay_of(method))
+
+    tracker = build(scene.likelihood)
+    if spec.refine_body and scene.body_calibration is not None:
+        say(f"{name}: refining the calibrated body on {REFINE_FRAMES} frames of a first {recipe.label} run, spread over the sequence")
+        scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=spec.start == "truth", ground_clearance=clearance,
+                                      name=name)
+        say(f"{name}: refined limb lengths (mm): " + ", ".join(f"{n} {1000 * v:.0f}" for n, v in limb_lengths_of(scene.body).items()))
+        tracker = build(scene.likelihood)
     return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)

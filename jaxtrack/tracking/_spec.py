@@ -68,6 +68,13 @@ class TrackingSpec:
             first frames' silhouettes, ``likelihood.calibrate_body``).
         height: the test subjects' standing height in metres, the calibration's prior (None: the
             default proportions, loosely).
+        refine_body: where the body was calibrated from the images, calibrate it a second time on
+            one tracker run's estimates at frames spread over the sequence (``tracking.refine_body``:
+            the knees and elbows bend there, where the first frames hold them straight), then track
+            with the refined body; one more tracking run per calibrated test sequence
+            (``track_sequence``: the tracker's own; ``run_experiment``: the first method's). On by
+            default: the trackers came within 3-15 % of the true body's error, from 13-23 %
+            (docs/body.md).
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
         ground_prior: multiply every tracker's likelihood by the ground plane's prior, the feet
@@ -108,6 +115,7 @@ class TrackingSpec:
     pixel_samples: int | str | None = "auto"
     body: str = "auto"
     height: float | None = None
+    refine_body: bool = True
     calibrate_shape: bool = False
     ground_prior: bool = True
     velocity: bool | None = None
@@ -128,6 +136,8 @@ class TrackingSpec:
                                                              or not isinstance(self.pixel_samples, int) or self.pixel_samples < 4):
             raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum), 0 or None "
                                      f"(every pixel) or 'auto', got {self.pixel_samples!r}")
+        if not isinstance(self.refine_body, bool):
+            raise ConfigurationError(f"refine_body must be True or False, got {self.refine_body!r}")
         if self.body not in BODY_CHOICES:
             raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
         if self.start not in START_CHOICES:
