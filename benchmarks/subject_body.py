@@ -15,7 +15,7 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   skeleton for the start (the file's joints are used for nothing else); a calibration that does
   not converge is reported and that scene not tracked;
 - ``refined``: ``calibrated``, then one run of ``--refine-with`` (MRPF) tracks the scene and the
-  body is calibrated again on 12 tracked frames spread over the sequence (``tracking.refine_body``),
+  body is calibrated again on tracked frames spread over the sequence (``tracking.refine_body``),
   the start re-solved on the refined skeleton; every tracker then tracks with that body;
 - ``true``: the subject's own skeleton and capsule radii written into the file.
 
@@ -50,7 +50,8 @@ def main():
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--refine-with", default="mrpf", help="the tracker whose run the refined condition calibrates on")
-    parser.add_argument("--refine-frames", type=int, default=12, help="frames of the refined condition's second pass")
+    parser.add_argument("--refine-frames", type=int, default=None,
+                        help="frames of the refined condition's second pass (default: tracking.refine_frame_count, 12 at 4x160x120)")
     add_output_arguments(parser, plot="draw frame 0 of the walk in the first setting's views, rendered by both renderers, "
                                       "to this PNG (docs/figures/solid_body.png) before the runs")
     parser.add_argument("--plot-only", action="store_true", help="draw the figure and stop")

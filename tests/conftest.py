@@ -12,11 +12,12 @@ os.environ["JAXTRACK_CACHE_DIR"] = "off"
 # The tests' own compiled programs are kept on disk (JAX's persistent cache), shared by the
 # pytest-xdist workers and by later runs: half of a cold test run is XLA compiling programs that
 # another test or worker already compiled. JAX_COMPILATION_CACHE_DIR chooses the folder ("off":
-# none); .ci/run points the notebooks' kernels at the same one.
+# none); .ci/run points the notebooks' kernels at the same one. Every program is kept, however
+# quick to compile: a worker then loads the small programs the other compiled (docs/testing.md).
 _CACHE = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".pytest_jax_cache"))
 if _CACHE.strip().lower() not in ("", "off"):
     jax.config.update("jax_compilation_cache_dir", os.path.abspath(_CACHE))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 else:
     jax.config.update("jax_compilation_cache_dir", None)
 

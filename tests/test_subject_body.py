@@ -19,7 +19,15 @@ from jaxtrack.experiment import ExperimentConfig, run_experiment
 from jaxtrack.io import Sequence, load_sequence, save_sequence
 from jaxtrack.likelihood import calibrate_body, check_silhouettes, default_pixel_samples, make_ground_prior, make_silhouette_likelihood
 from jaxtrack.manifold import fit_spectral
-from jaxtrack.tracking import limb_lengths_of, method_problems, prepare_test, refine_body, spread_frames, subject_body
+from jaxtrack.tracking import (
+    limb_lengths_of,
+    method_problems,
+    prepare_test,
+    refine_body,
+    refine_frame_count,
+    spread_frames,
+    subject_body,
+)
 
 from helpers import small_experiment_sequences
 
@@ -263,8 +271,19 @@ def test_spread_frames_and_refine_body_refuse_bad_input_before_fitting(other_sub
     np.testing.assert_array_equal(spread_frames(1, 8), [0])
     with pytest.raises(ValueError, match="at least one frame and one pick"):
         spread_frames(40, 0)
+
+    class Scene:  # what refine_frame_count reads of a scene
+        def __init__(self, likelihood, num_frames):
+            self.likelihood, self.num_frames = likelihood, num_frames
+
+    # 12 frames at 4 views of 160x120 or more, proportionally more for fewer pixels, at most 40 and the sequence.
+    counts = [refine_frame_count(Scene(default_rig(w, h, num_views=c), t))
+              for c, w, h, t in ((4, 160, 120, 40), (4, 320, 240, 40), (3, 160, 120, 40), (3, 80, 60, 40), (3, 80, 60, 25))]
+    assert counts == [12, 12, 16, 40, 25]
+    assert refine_frame_count(Scene(None, 40)) == 12  # no cameras: the default
     _, full, _ = other_subject_scene
     scene = prepare_test(full, "x.npz", key=jax.random.key(0))
+    assert refine_frame_count(scene) == 8  # the whole 8-frame scene
     poses = np.asarray(scene.truth_poses)
     with pytest.raises(ValueError, match=r"one run's \(8, 32\) estimates on this scene, got \(7, 32\)"):
         refine_body(scene, poses[:7], key=jax.random.key(0))

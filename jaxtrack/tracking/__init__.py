@@ -42,6 +42,7 @@ from ._pipeline import tracker_keys as tracker_keys
 from ._pipeline import tracker_stream as tracker_stream
 from ._refine_body import REFINE_FRAMES as REFINE_FRAMES
 from ._refine_body import refine_body as refine_body
+from ._refine_body import refine_frame_count as refine_frame_count
 from ._refine_body import spread_frames as spread_frames
 from ._refine_body import track_and_refine_body as track_and_refine_body
 from ._registry import FADING_START as FADING_START

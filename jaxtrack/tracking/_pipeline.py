@@ -60,7 +60,7 @@ from ..likelihood import (
     with_body,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
-from ._refine_body import REFINE_FRAMES, track_and_refine_body
+from ._refine_body import refine_frame_count, track_and_refine_body
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
@@ -698,7 +698,8 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
 
     tracker = build(scene.likelihood)
     if spec.refine_body and scene.body_calibration is not None:
-        say(f"{name}: refining the calibrated body on {REFINE_FRAMES} frames of a first {recipe.label} run, spread over the sequence")
+        say(f"{name}: refining the calibrated body on {refine_frame_count(scene)} frames of a first {recipe.label} run, "
+            "spread over the sequence")
         scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=spec.start == "truth", ground_clearance=clearance,
                                       name=name)
         say(f"{name}: refined limb lengths (mm): " + ", ".join(f"{n} {1000 * v:.0f}" for n, v in limb_lengths_of(scene.body).items()))

@@ -5,9 +5,10 @@ the first few frames, where a walk holds the knees and elbows nearly straight an
 lengths trade against each other along each chain; what it leaves is the proportions' prior
 pulling every limb toward the default's (docs/body.md, "The limb lengths are the whole gap").
 Once a tracker has run, its estimates give poses over the whole sequence, where the knees bend
-and the arms swing: ``refine_body`` calibrates again on ``frames`` frames spread evenly from frame
-0 to the last, each started at its tracked pose (free, as in the first pass), the first pass's
-body the prior's centre. The scene comes back with the refined body; the caller tracks again.
+and the arms swing: ``refine_body`` calibrates again on frames spread evenly from frame 0 to the
+last (12 at 4 views of 160x120, more for smaller images: ``refine_frame_count``), each started at
+its tracked pose (free, as in the first pass), the first pass's body the prior's centre.
+The scene comes back with the refined body; the caller tracks again.
 """
 
 from __future__ import annotations
@@ -20,11 +21,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..body import forward_kinematics, inverse_kinematics
+from ..camera import CameraRig
 from ..errors import ConfigurationError
 from ..filters import run_filter
 from ..likelihood import body_of, calibrate_body, make_ground_prior, with_body
 
-REFINE_FRAMES = 12  # frames of the second pass, spread over the sequence (8 measured worse: docs/body.md)
+REFINE_FRAMES = 12  # frames of the second pass at 4 views of 160x120 or more (8 measured worse: docs/body.md)
+MAX_REFINE_FRAMES = 40  # the most frames a second pass fits (its cost grows with them)
+# The pixels per frame (summed over the views) at which REFINE_FRAMES frames carry enough: 4 views of 160x120.
+# Smaller images get proportionally more frames (3 views of 80x60: 12 -> 24 -> 40 frames took MRPF
+# from 26.9 to 25.0 to 25.1 mm, LatentPF from 23.9 to 22.5 to 21.0: docs/body.md).
+REFINE_REFERENCE_PIXELS = 4 * 160 * 120
 REFINE_TAG = 2**31 - 4  # fold_in tag of the first tracking pass's key (a tracker's runs use tags 0, 1, ...)
 
 
@@ -36,7 +43,20 @@ def spread_frames(num_frames: int, count: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, num_frames - 1, min(count, num_frames))).astype(int))
 
 
-def refine_body(scene, tracked_poses, *, key, frames: int = REFINE_FRAMES, start_joints=None,
+def refine_frame_count(scene) -> int:
+    """Frames of the second pass for ``scene``: ``REFINE_FRAMES`` at 4 views of 160x120 or more
+    pixels per frame, proportionally more for smaller images (the evidence on a limb's length
+    grows with the pixels along its edges), at most ``MAX_REFINE_FRAMES`` and the sequence's
+    length. A likelihood without cameras gets ``REFINE_FRAMES``."""
+    rigs = [x for x in jax.tree.leaves(scene.likelihood, is_leaf=lambda x: isinstance(x, CameraRig)) if isinstance(x, CameraRig)]
+    count = REFINE_FRAMES
+    if rigs:
+        pixels = sum(w * h for w, h in rigs[0].image_size)
+        count = int(np.clip(np.ceil(REFINE_FRAMES * REFINE_REFERENCE_PIXELS / pixels), REFINE_FRAMES, MAX_REFINE_FRAMES))
+    return min(count, scene.num_frames)
+
+
+def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_joints=None,
                 ground_clearance: float = 0.06, **calibration_options):
     """The scene with its body calibrated again on tracked frames spread over the sequence.
 
@@ -46,7 +66,8 @@ def refine_body(scene, tracked_poses, *, key, frames: int = REFINE_FRAMES, start
         tracked_poses: (T, D) one tracker run's estimates on ``scene`` (``track`` or one run of
             ``track_runs``), on the scene's skeleton.
         key: for the start pose's inverse kinematics.
-        frames: frames of the second pass, spread evenly from frame 0 (``spread_frames``).
+        frames: frames of the second pass, spread evenly from frame 0 (``spread_frames``); None:
+            ``refine_frame_count(scene)`` (more for small images).
         start_joints: (J, 3) frame 0's joint positions (metres) when the start is given as joints
             (HumanEva's protocol): the new start pose is solved on the refined skeleton; None: the
             second pass's own fit of frame 0 (silhouettes alone).
@@ -68,7 +89,7 @@ def refine_body(scene, tracked_poses, *, key, frames: int = REFINE_FRAMES, start
         raise ValueError(f"tracked_poses must be one run's ({T}, {D}) estimates on this scene, got {poses.shape}")
     if not np.all(np.isfinite(poses)):
         raise ValueError("tracked_poses contain NaN or infinite values")
-    picks = spread_frames(T, frames)
+    picks = spread_frames(T, refine_frame_count(scene) if frames is None else frames)
     likelihood = scene.likelihood
     if scene.ground_prior is None:  # the floor holds the ankles while the band hides the feet
         likelihood = likelihood + make_ground_prior(scene.body.skeleton, ground_clearance)
@@ -89,7 +110,7 @@ def refine_body(scene, tracked_poses, *, key, frames: int = REFINE_FRAMES, start
 
 
 def track_and_refine_body(scene, tracker, key, *, start_from_truth: bool = True, ground_clearance: float = 0.06,
-                          frames: int = REFINE_FRAMES, name: str = "test"):
+                          frames: int | None = None, name: str = "test"):
     """One run of ``tracker`` on ``scene`` (key ``fold_in(key, REFINE_TAG)``), then ``refine_body``
     on its estimates; the start re-solved on the refined skeleton from frame 0's ground-truth joints
     when ``start_from_truth`` and the scene has them, else the second pass's own fit of frame 0.
