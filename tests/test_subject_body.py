@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.body import humaneva_body, inverse_kinematics
+from jaxtrack.body import DEFAULT_LIMB_LENGTHS, humaneva_body, inverse_kinematics
 from jaxtrack.camera import default_rig
 from jaxtrack.data import NO_NOISE, SilhouetteNoise, SolidBody, SubjectStyle, build_scene, generate_motion, render_solid_silhouettes
 from jaxtrack.errors import ConfigurationError, SequenceFileError
@@ -199,6 +199,13 @@ def test_calibration_refuses_bad_settings_before_fitting(other_subject_scene):
         calibrate_body(likelihood, motion.pose[:2], observed, proportion_sd={"nek": 0.02})
     with pytest.raises(ValueError, match="floor_band must be a reach on the floor in metres"):
         calibrate_body(likelihood, motion.pose[:2], observed, floor_band=-0.45)
+    limbs = dict(DEFAULT_LIMB_LENGTHS)
+    with pytest.raises(ValueError, match="give height or prior_lengths, not both"):
+        calibrate_body(likelihood, motion.pose[:2], observed, height=1.75, prior_lengths=limbs)
+    with pytest.raises(ValueError, match="prior_lengths must give every limb"):
+        calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={**limbs, "shin": 0.0})
+    with pytest.raises(ValueError, match="prior_lengths must give every limb"):
+        calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={k: v for k, v in limbs.items() if k != "neck"})
 
 
 @pytest.mark.slow

@@ -153,6 +153,7 @@ def calibrate_body(
     observations,
     *,
     height: float | None = None,
+    prior_lengths: dict[str, float] | None = None,
     steps: int = 300,
     learning_rate: float = 0.05,
     scale_sd: float = 0.1,
@@ -179,6 +180,10 @@ def calibrate_body(
             H, W) silhouettes, or a ``PixelSample``).
         height: the subject's standing height in metres: the limb lengths' prior is then the
             default proportions at that height (tighter); None: the starting body's lengths.
+        prior_lengths: the limbs' prior centre (metres, by ``body.LIMB_SEGMENTS``' names, every
+            limb) instead of the starting body's lengths, with the sd ``scale_sd`` on their common
+            scale: a second pass started at a first pass's body keeps the first pass's prior
+            (``tracking.refine_body``). Not with ``height``.
         steps, learning_rate: Adam on the whitened parameters.
         scale_sd, scale_sd_height: prior sd of the common log scale of every limb, without and
             with a stated height.
@@ -233,10 +238,19 @@ def calibrate_body(
         raise ValueError(f"edge_factor must be in (0, 1], got {edge_factor}")
     if floor_band is not None and not (np.isfinite(floor_band) and 0 < floor_band <= 2):
         raise ValueError(f"floor_band must be a reach on the floor in metres, in (0, 2], or None; got {floor_band}")
+    if height is not None and prior_lengths is not None:
+        raise ValueError("give height or prior_lengths, not both (a height sets the prior's centre)")
     if height is not None:
         height = check_height(height)
         reference = np.array([limb_lengths_for_height(height)[n] for n in names])
         sd_scale = scale_sd_height
+    elif prior_lengths is not None:
+        missing = sorted(set(names) - set(prior_lengths))
+        reference = np.array([float(prior_lengths.get(n, np.nan)) for n in names])
+        if missing or sorted(set(prior_lengths) - set(names)) or not np.all(np.isfinite(reference) & (reference > 0)):
+            raise ValueError(f"prior_lengths must give every limb ({', '.join(names)}) a positive length in metres, got "
+                             f"{dict(prior_lengths)}")
+        sd_scale = scale_sd
     else:
         reference, sd_scale = start_lengths, scale_sd
     groups = symmetric_groups(body.capsule_names)

@@ -41,6 +41,7 @@ from ._pipeline import track_sequences as track_sequences
 from ._pipeline import tracker_keys as tracker_keys
 from ._pipeline import tracker_stream as tracker_stream
 from ._refine_body import REFINE_FRAMES as REFINE_FRAMES
+from ._refine_body import REFINE_PROPORTION_SD as REFINE_PROPORTION_SD
 from ._refine_body import refine_body as refine_body
 from ._refine_body import refine_frame_count as refine_frame_count
 from ._refine_body import spread_frames as spread_frames

@@ -7,7 +7,9 @@ pulling every limb toward the default's (docs/body.md, "The limb lengths are the
 Once a tracker has run, its estimates give poses over the whole sequence, where the knees bend
 and the arms swing: ``refine_body`` calibrates again on frames spread evenly from frame 0 to the
 last (12 at 4 views of 160x120, more for smaller images: ``refine_frame_count``), each started at
-its tracked pose (free, as in the first pass), the first pass's body the prior's centre.
+its tracked pose (free, as in the first pass), the first pass's body the prior's centre, with a
+wider prior on each limb's proportion (sd ``REFINE_PROPORTION_SD``, the first pass's 0.06 having
+already pulled the limbs toward the population's proportions).
 The scene comes back with the refined body; the caller tracks again.
 """
 
@@ -29,9 +31,12 @@ from ..likelihood import body_of, calibrate_body, make_ground_prior, with_body
 REFINE_FRAMES = 12  # frames of the second pass at 4 views of 160x120 or more (8 measured worse: docs/body.md)
 MAX_REFINE_FRAMES = 40  # the most frames a second pass fits (its cost grows with them)
 # The pixels per frame (summed over the views) at which REFINE_FRAMES frames carry enough: 4 views of 160x120.
-# Smaller images get proportionally more frames (3 views of 80x60: 12 -> 24 -> 40 frames took MRPF
-# from 26.9 to 25.0 to 25.1 mm, LatentPF from 23.9 to 22.5 to 21.0: docs/body.md).
+# Smaller images get proportionally more frames (docs/body.md, "The limb lengths are the whole gap").
 REFINE_REFERENCE_PIXELS = 4 * 160 * 120
+# Prior sd of each limb's log proportion around the first pass's body: the first pass already held
+# the limbs to the population's proportions (sd 0.06), and holding them there again a second time
+# kept the split along a straight arm or leg where the first frames left it (docs/body.md).
+REFINE_PROPORTION_SD = 0.15
 REFINE_TAG = 2**31 - 4  # fold_in tag of the first tracking pass's key (a tracker's runs use tags 0, 1, ...)
 
 
@@ -73,7 +78,8 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
             second pass's own fit of frame 0 (silhouettes alone).
         ground_clearance: the floor prior's clearance (metres) during the pass when the scene has no
             ground prior (``tracking.CALIBRATION_CLEARANCE``); a scene's own prior is used as it is.
-        **calibration_options: passed to ``likelihood.calibrate_body``.
+        **calibration_options: passed to ``likelihood.calibrate_body`` (``proportion_sd``
+            defaults to ``REFINE_PROPORTION_SD`` here).
 
     Returns:
         the scene with the refined body in its likelihood, the new start pose, the second pass's
@@ -94,6 +100,7 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
     if scene.ground_prior is None:  # the floor holds the ankles while the band hides the feet
         likelihood = likelihood + make_ground_prior(scene.body.skeleton, ground_clearance)
     observations = jax.tree.map(lambda x: jnp.asarray(x)[jnp.asarray(picks)], scene.observations)
+    calibration_options.setdefault("proportion_sd", REFINE_PROPORTION_SD)
     fitted, fitted_poses, report = calibrate_body(likelihood, poses[picks], observations, **calibration_options)
     body = body_of(fitted)
     if start_joints is None:
