@@ -17,6 +17,13 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
 - ``refined``: ``calibrated``, then one run of ``--refine-with`` (MRPF) tracks the scene and the
   body is calibrated again on tracked frames spread over the sequence (``tracking.refine_body``),
   the start re-solved on the refined skeleton; every tracker then tracks with that body;
+- ``keypoints``: the file also carries 2-D keypoints (the true joints projected, N(0,
+  ``--keypoint-noise`` px) added, 10 % missing: a good detector); the body is calibrated from the
+  silhouettes and keypoints together (``likelihood="silhouette+keypoints"``), from the keypoints
+  alone where that is refused (``tracking.prepare_test``), then frame 0's joints solved on it for
+  the start; the trackers track the silhouettes alone with that body, as in the other conditions;
+- ``keypoints-refined``: ``keypoints``, then the second pass on a ``--refine-with`` run that
+  tracks both cues (``tracking.refine_body``, on the keypoints alone where the first pass was);
 - ``true``: the subject's own skeleton and capsule radii written into the file.
 
     taskset -c 0,1 python benchmarks/subject_body.py --runs 5 --budget 500 --json subject_body.json
@@ -35,7 +42,7 @@ from bench_output import add_output_arguments, pin_threads, write_json
 LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm", 0.87), ("forearm", 1.13), ("hip", 0.88),
                 ("thigh", 1.12), ("shin", 0.86))
 RADIUS_FACTOR = 1.2
-CONDITIONS = ("default", "joints", "calibrated", "refined", "true")
+CONDITIONS = ("default", "joints", "calibrated", "refined", "keypoints", "keypoints-refined", "true")
 SETTINGS = {"4x160x120": (4, 160, 120), "3x80x60": (3, 80, 60)}
 
 
@@ -49,6 +56,7 @@ def main():
     parser.add_argument("--renderers", nargs="+", default=["capsules", "solid"], choices=["capsules", "solid"])
     parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS))
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--keypoint-noise", type=float, default=1.0, help="the keypoints condition's detection noise, pixels (sd)")
     parser.add_argument("--refine-with", default="mrpf", help="the tracker whose run the refined condition calibrates on")
     parser.add_argument("--refine-frames", type=int, default=None,
                         help="frames of the refined condition's second pass (default: tracking.refine_frame_count, 12 at 4x160x120)")
@@ -57,15 +65,19 @@ def main():
     parser.add_argument("--plot-only", action="store_true", help="draw the figure and stop")
     args = parser.parse_args()
     pin_threads(args.threads)
+    import dataclasses
+
     import jax
     import numpy as np
 
+    from jaxtrack.body import forward_kinematics, inverse_kinematics
     from jaxtrack.camera import default_rig
-    from jaxtrack.data import SilhouetteNoise, SolidBody, SubjectStyle, build_scene, generate_motion
+    from jaxtrack.data import DetectorNoise, SilhouetteNoise, SolidBody, SubjectStyle, build_scene, detect_keypoints, generate_motion
     from jaxtrack.demo import demo_sequences
     from jaxtrack.errors import ConfigurationError
     from jaxtrack.evaluation import mean_joint_error_mm, per_frame_error_mm
     from jaxtrack.experiment import ExperimentConfig, shared_window
+    from jaxtrack.likelihood import with_body
     from jaxtrack.tracking import (
         add_ground_prior,
         build_tracker,
@@ -90,7 +102,8 @@ def main():
         if args.plot_only:
             return
     train, validation, _, _ = demo_sequences(key)
-    fitted_methods = list(dict.fromkeys([*args.methods, *([args.refine_with] if "refined" in args.conditions else [])]))
+    refining = any(c.endswith("refined") for c in args.conditions)
+    fitted_methods = list(dict.fromkeys([*args.methods, *([args.refine_with] if refining else [])]))
     config = ExperimentConfig(methods=tuple(fitted_methods), budget=args.budget, runs=args.runs, fit_steps=100, seed=args.seed)
     train_poses = [sequence_poses(s, "train", key=key) for s in train]
     validation_poses = [sequence_poses(s, "validation", key=key) for s in validation]
@@ -110,6 +123,30 @@ def main():
                              residual_from=validation_poses, residual_scale=config.residual_of(method),
                              residual_decay=config.residual_decay_of(method))
 
+    def keypoint_body(scene, test, gait, refine):
+        """``scene`` with the body calibrated from its silhouettes and keypoints (or the keypoints
+        alone), with ``refine`` calibrated again on a ``--refine-with`` run with both cues, the start
+        solved on it from frame 0's joints."""
+        noise = DetectorNoise(noise_px=args.keypoint_noise)
+        rig = scene.likelihood.rig
+        detected = test.replace(keypoints2d=detect_keypoints(jax.random.fold_in(key, 700), test.joints3d, rig, noise))
+        calibrated = prepare_test(detected, f"X {gait}", key=key, body="calibrate", likelihood="silhouette+keypoints",
+                                  likelihood_options={"sigma_px": max(args.keypoint_noise, 1.0)}, ground_clearance=clearance,
+                                  window=window)
+        if refine:
+            calibrated = add_ground_prior(calibrated, clearance)
+            tracker = make_tracker(args.refine_with, calibrated)
+            first, _, _ = track_runs(tracker, jax.random.fold_in(roots[args.refine_with], 10_000)[None], calibrated)
+            calibrated = refine_body(calibrated, first[0], key=key, frames=args.refine_frames, start_joints=calibrated.truth_joints[0])
+        body = calibrated.body
+        start = inverse_kinematics(np.asarray(scene.truth_joints[0], np.float64)[None], skeleton=body.skeleton, key=key,
+                                   dtype=jax.numpy.float64).pose[0]
+        start = jax.numpy.asarray(start, scene.initial_pose.dtype)
+        error = 1000.0 * float(np.mean(np.linalg.norm(np.asarray(forward_kinematics(body.skeleton, start), np.float64)
+                                                      - scene.truth_joints[0], axis=-1)))
+        return dataclasses.replace(scene, likelihood=with_body(scene.likelihood, body), body=body, initial_pose=start,
+                                   body_calibration=calibrated.body_calibration, start_error_mm=error)
+
     rows = []
     for setting in args.settings:
         views, width, height = SETTINGS[setting]
@@ -128,9 +165,11 @@ def main():
                     drop = {k: None for k in ("pose", "pose_layout", "skeleton_offsets", "capsule_radii") if k not in keep}
                     test = scene_seq.replace(**drop)
                     body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "refined": "calibrate",
-                            "true": "auto"}[condition]
+                            "keypoints": "default", "keypoints-refined": "default", "true": "auto"}[condition]
                     try:
                         scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance)
+                        if condition.startswith("keypoints"):
+                            scene = keypoint_body(scene, test, gait, refine=condition == "keypoints-refined")
                     except ConfigurationError as err:  # a calibration that did not converge: reported, not tracked
                         row["scenes"][gait] = {"refused": str(err)}
                         print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)

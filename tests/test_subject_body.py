@@ -13,11 +13,30 @@ import pytest
 
 from jaxtrack.body import DEFAULT_LIMB_LENGTHS, humaneva_body, inverse_kinematics
 from jaxtrack.camera import default_rig
-from jaxtrack.data import NO_NOISE, SilhouetteNoise, SolidBody, SubjectStyle, build_scene, generate_motion, render_solid_silhouettes
+from jaxtrack.data import (
+    NO_NOISE,
+    DetectorNoise,
+    SilhouetteNoise,
+    SolidBody,
+    SubjectStyle,
+    build_scene,
+    detect_keypoints,
+    generate_motion,
+    render_solid_silhouettes,
+)
 from jaxtrack.errors import ConfigurationError, SequenceFileError
 from jaxtrack.experiment import ExperimentConfig, run_experiment
 from jaxtrack.io import Sequence, load_sequence, save_sequence
-from jaxtrack.likelihood import calibrate_body, check_silhouettes, default_pixel_samples, make_ground_prior, make_silhouette_likelihood
+from jaxtrack.likelihood import (
+    ObservationPart,
+    calibrate_body,
+    check_silhouettes,
+    default_pixel_samples,
+    keypoint_terms,
+    make_ground_prior,
+    make_keypoint_likelihood,
+    make_silhouette_likelihood,
+)
 from jaxtrack.manifold import fit_spectral
 from jaxtrack.tracking import (
     limb_lengths_of,
@@ -206,6 +225,61 @@ def test_calibration_refuses_bad_settings_before_fitting(other_subject_scene):
         calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={**limbs, "shin": 0.0})
     with pytest.raises(ValueError, match="prior_lengths must give every limb"):
         calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={k: v for k, v in limbs.items() if k != "neck"})
+
+
+@pytest.mark.slow  # two calibrations compiled: 20-30 s on 2 cores
+def test_keypoints_enter_the_body_calibration_once_whatever_its_data_weight(other_subject_scene):
+    """``calibrate_body``'s data weight undoes the silhouettes' tempering; the keypoints' term is
+    not tempered and enters once: a keypoints-alone calibration is the same at data weight 1 and
+    30. Its cost (not on 000 eq. 12's scale) is not held to the silhouettes' ceiling; ``keypoint_terms`` finds the keypoints' part
+    of a summed likelihood."""
+    motion, full, _ = other_subject_scene
+    rig = default_rig(40, 30, dtype=jnp.float64)
+    body = humaneva_body(dtype=jnp.float64)
+    noisy = DetectorNoise(noise_px=2.0)  # a cost of tens: far above the silhouettes' ceiling, MAX_COST
+    observed = jnp.asarray(np.moveaxis(detect_keypoints(jax.random.key(0), full.joints3d[:2], rig, noisy), 0, 1))
+    start = np.asarray(motion.pose[:2], np.float64)
+    points = make_keypoint_likelihood(body, rig, sigma_px=1.0, dtype=jnp.float64)
+    once, weighted = (calibrate_body(points, start, observed, data_weight=w, steps=20)[2] for w in (1.0, 30.0))
+    np.testing.assert_allclose(once.lengths_after, weighted.lengths_after, rtol=1e-6)
+    assert np.max(np.abs(once.lengths_after - once.lengths_before)) > 1e-3  # it did fit
+    assert weighted.cost_after > 0.5 and weighted.cues == "all"  # not refused for a cost on another scale
+    with pytest.raises(ValueError, match="data_weight must be a positive number"):
+        calibrate_body(make_keypoint_likelihood(body, rig, dtype=jnp.float64), start, observed, data_weight=0.0)
+    silhouettes = make_silhouette_likelihood(body, rig, scale=100.0, window=None)
+    floor = make_ground_prior(body.skeleton, 0.06)
+    assert keypoint_terms(silhouettes) is None and keypoint_terms(points) is None and keypoint_terms(points + floor) is None
+    both = ObservationPart(silhouettes, "silhouettes") + ObservationPart(points, "keypoints")
+    assert keypoint_terms(both).term is points and keypoint_terms(both + floor).term is points  # a scene's, with its floor
+
+
+@pytest.mark.slow  # two body calibrations at 160x120: 3-4 minutes on 2 cores
+def test_a_body_its_silhouettes_cannot_calibrate_is_calibrated_from_its_keypoints(capsys):
+    """The subject rendered by ``SolidBody`` (ellipsoids pinched at the joints, feet, an egg-shaped
+    head: docs/body.md) with 1-pixel keypoints: calibrated from the silhouettes and keypoints
+    together its neck runs to 1.4 times its reference and is refused; ``prepare_test`` then
+    calibrates from the keypoints alone and says so (measured: every limb within 22 mm, the start
+    7.9 mm)."""
+    key = jax.random.key(0)
+    motion = generate_motion("walk", SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=1.2), num_frames=40, fps=60.0,
+                             key=jax.random.fold_in(key, 500))
+    rig = default_rig(160, 120)
+    scene = build_scene(jax.random.fold_in(key, 600), motion, rig, SilhouetteNoise(), solid=SolidBody(motion.body.skeleton))
+    scene = scene.replace(keypoints2d=detect_keypoints(jax.random.key(5), scene.joints3d, rig, DetectorNoise(noise_px=1.0)),
+                          **dict.fromkeys(JOINT_KEYS))
+    test = prepare_test(scene, "solid walk", key=key, frames=8, body="calibrate", likelihood="silhouette+keypoints",
+                        likelihood_options={"sigma_px": 1.0})
+    assert "calibrating from the 2-D keypoints alone" in capsys.readouterr().err
+    assert test.body_calibration.cues == "keypoints" and test.body_calibration.summary()["cues"] == "keypoints"
+    truth, fitted = limb_lengths_of(motion.body), limb_lengths_of(test.body)
+    assert max(abs(fitted[k] - truth[k]) for k in truth) < 0.03
+    assert test.start_error_mm <= 20.0
+    # the second pass keeps to the keypoints too (the silhouettes would pull the joints again)
+    tracked = np.repeat(np.asarray(test.initial_pose, np.float64)[None], test.num_frames, axis=0)
+    refined = refine_body(test, tracked, key=key, frames=4)
+    assert refined.body_calibration.cues == "keypoints"
+    fitted = limb_lengths_of(refined.body)
+    assert max(abs(fitted[k] - truth[k]) for k in truth) < 0.03
 
 
 @pytest.mark.slow

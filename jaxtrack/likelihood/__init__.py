@@ -53,6 +53,7 @@ from ._histogram import make_histogram_likelihood as make_histogram_likelihood
 from ._histogram import soft_histogram as soft_histogram
 from ._keypoints import KeypointLikelihood as KeypointLikelihood
 from ._keypoints import joint_sigmas as joint_sigmas
+from ._keypoints import keypoint_terms as keypoint_terms
 from ._keypoints import make_keypoint_likelihood as make_keypoint_likelihood
 from ._registry import DEFAULT_LIKELIHOOD as DEFAULT_LIKELIHOOD
 from ._registry import OBSERVATION_KINDS as OBSERVATION_KINDS

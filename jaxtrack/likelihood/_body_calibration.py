@@ -23,7 +23,10 @@ with Gaussian priors on
 ``data_weight`` (30) undoes the tracker's tempering for this one MAP problem: at the tracking
 temperature (000 eq. 12 times 100) a 4-frame clean 160x120 scene holds about one nat for a limb
 5 cm off, less than the proportions' prior, and the lengths stayed where they started; at 30 the
-arms and legs came within 1-2 cm (the notes in ``docs/body.md``).
+arms and legs came within 1-2 cm (the notes in ``docs/body.md``). The 2-D keypoints' term
+(``KeypointLikelihood``) is not tempered, so it enters once, alone or beside the silhouettes: its
+weight is divided by ``data_weight`` for the fit (at 30 times its weight the fit followed one
+pixel of detection noise: docs/keypoints.md).
 
 Two things a start pose and the tracker's soft edge would otherwise bias (docs/body.md, "The
 thorax's height and the soft edge"):
@@ -64,6 +67,7 @@ from ._base import AbstractLikelihood
 from ._calibration import symmetric_groups
 from ._floor_band import FloorBandSilhouette
 from ._ground import GroundPlanePrior
+from ._keypoints import KeypointLikelihood
 from ._sampled import SampledSilhouetteLikelihood
 from ._silhouette import SilhouetteLikelihood
 
@@ -88,6 +92,9 @@ class BodyCalibration(NamedTuple):
         cost_before, cost_after: ``-mean_f ln p(I_f | x_f) / scale`` at the start and the end.
         trace: (steps,) the MAP objective per step.
         height: the stated height (metres), or None.
+        cues: what the body was fitted to: "all" (the whole likelihood), or "keypoints" (its 2-D
+            keypoints alone, where the whole likelihood's calibration was refused: set by
+            ``tracking.prepare_test``).
     """
 
     limb_names: tuple[str, ...]
@@ -103,6 +110,7 @@ class BodyCalibration(NamedTuple):
     cost_after: float
     trace: np.ndarray
     height: float | None
+    cues: str = "all"
 
     def summary(self) -> dict:
         """For results.json: lengths and radii (mm) before and after, costs, height."""
@@ -111,7 +119,7 @@ class BodyCalibration(NamedTuple):
                 "radii_before_mm": dict(zip(self.capsule_names, np.round(1000 * self.radii_before, 1).tolist())),
                 "radii_after_mm": dict(zip(self.capsule_names, np.round(1000 * self.radii_after, 1).tolist())),
                 "cost_before": self.cost_before, "cost_after": self.cost_after, "frames": int(self.poses_after.shape[0]),
-                "height_m": self.height}
+                "height_m": self.height, "cues": self.cues}
 
 
 def body_of(likelihood) -> BodyModel:
@@ -205,8 +213,9 @@ def calibrate_body(
             shadows, which a capsule body can only explain with longer shins); None, or no floor
             prior: whole silhouettes. The returned likelihood scores whole silhouettes.
         max_cost: the highest final cost (``-mean_f ln p / scale``) of a converged calibration,
-            on 000 eq. 12's scale (``MAX_COST``); None for a likelihood on another scale (the
-            keypoints' alone): then only a rising cost and implausible lengths are refused.
+            on 000 eq. 12's scale (``MAX_COST``); applied only to a likelihood with a tempered term
+            (the silhouettes'); None, or a likelihood on another scale (the keypoints' alone): only
+            a rising cost and implausible lengths are refused.
 
     Returns:
         ``(likelihood with the fitted body, fitted poses (F, D), BodyCalibration)``.
@@ -234,6 +243,8 @@ def calibrate_body(
     if steps < 1 or not learning_rate > 0 or min(scale_sd, scale_sd_height, *proportion_sds, radius_sd, pose_sd_m, pose_sd_rad,
                                                   neutral_sd) <= 0:
         raise ValueError("steps, learning_rate and every prior sd must be positive")
+    if not (np.isfinite(data_weight) and data_weight > 0):
+        raise ValueError(f"data_weight must be a positive number, got {data_weight!r}")
     if not 0 < edge_factor <= 1:
         raise ValueError(f"edge_factor must be in (0, 1], got {edge_factor}")
     if floor_band is not None and not (np.isfinite(floor_band) and 0 < floor_band <= 2):
@@ -271,7 +282,9 @@ def calibrate_body(
            "radius": cast(np.full(len(radius0), radius_sd)), "pose": cast(pose_sd)}
     structure = (cast(directions), jnp.asarray(limb_of), jnp.asarray(groups), cast(np.log(reference)))
     u0 = jax.tree.map(jnp.zeros_like, prior)
-    fitted_to = _sharpened(likelihood, edge_factor)
+    fitted_to = _untempered_keypoints(_sharpened(likelihood, edge_factor), data_weight)
+    if not _tempered(likelihood):
+        max_cost = None  # the cost is not on 000 eq. 12's scale
     if floor_band is not None:
         fitted_to = _without_floor_band(fitted_to, floor_band)
     u, trace, costs = _fit(fitted_to, body, structure, observations, prior, sds,
@@ -311,6 +324,25 @@ def _sharpened(likelihood, factor: float):
         return eqx.tree_at(lambda t: t.edge_width, term, term.edge_width * factor) if has_edge(term) else term
 
     return jax.tree.map(sharpen, likelihood, is_leaf=has_edge) if factor != 1 else likelihood
+
+
+def _untempered_keypoints(likelihood, data_weight: float):
+    """The likelihood with every keypoint term's weight divided by ``data_weight``: untempered
+    terms enter the MAP objective once (module docstring)."""
+    is_keypoints = lambda x: isinstance(x, KeypointLikelihood)  # noqa: E731
+
+    def untempered(term):
+        if not is_keypoints(term):
+            return term
+        return KeypointLikelihood(term.body, term.rig, term.sigmas, term.robust, term.weight / float(data_weight))
+
+    return jax.tree.map(untempered, likelihood, is_leaf=is_keypoints)
+
+
+def _tempered(likelihood) -> bool:
+    """Whether some term of the likelihood has a temperature (a ``scale``: the silhouettes')."""
+    has_scale = lambda x: isinstance(x, AbstractLikelihood) and hasattr(x, "scale")  # noqa: E731
+    return any(has_scale(x) for x in jax.tree.leaves(likelihood, is_leaf=has_scale))
 
 
 def _per_limb(sd, names: tuple[str, ...]) -> np.ndarray:

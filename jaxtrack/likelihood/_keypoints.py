@@ -26,7 +26,7 @@ from .._custom_types import Array, Float
 from ..body import HUMANEVA_JOINTS, BodyModel, forward_kinematics
 from ..camera import CameraRig, project_points
 from ..errors import ConfigurationError
-from ._base import AbstractLikelihood
+from ._base import AbstractLikelihood, ObservationPart, SumLikelihood
 
 ROBUST_LOSSES = ("cauchy", "gaussian")
 APPROXIMATE_JOINTS = ("thorax", "head")
@@ -91,3 +91,23 @@ def make_keypoint_likelihood(body: BodyModel, rig: CameraRig, *, sigma_px: float
     if not (np.isfinite(sigma_px) and sigma_px > 0):
         raise ConfigurationError(f"sigma_px must be a positive number of pixels, got {sigma_px!r}")
     return KeypointLikelihood(body, rig, jnp.asarray(joint_sigmas(sigma_px), dtype), robust, float(weight))
+
+
+def keypoint_terms(likelihood: AbstractLikelihood) -> AbstractLikelihood | None:
+    """The 2-D keypoint terms of a likelihood that also observes other cues (``silhouette+keypoints``;
+    nested sums are looked into, priors left out), summed, or None (no keypoints, or no other cue).
+    What ``tracking.prepare_test`` calibrates the body from when the whole likelihood's calibration
+    is refused: the keypoints mark the joints themselves, so a body whose shape is not the capsules'
+    is still measured (docs/body.md)."""
+    terms = _flat_terms(likelihood)
+    kept = tuple(t for t in terms if isinstance(t, KeypointLikelihood)
+                 or (isinstance(t, ObservationPart) and isinstance(t.term, KeypointLikelihood)))
+    if not kept or len(kept) == sum(t.reads_observation for t in terms):
+        return None
+    return kept[0] if len(kept) == 1 else SumLikelihood(kept)
+
+
+def _flat_terms(likelihood: AbstractLikelihood) -> tuple[AbstractLikelihood, ...]:
+    if isinstance(likelihood, SumLikelihood):
+        return tuple(t for term in likelihood.terms for t in _flat_terms(term))
+    return (likelihood,)

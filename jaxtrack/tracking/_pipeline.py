@@ -52,6 +52,7 @@ from ..likelihood import (
     default_pixel_samples,
     get_likelihood,
     ground_clearance,
+    keypoint_terms,
     make_ground_prior,
     maps_from_images,
     maps_from_silhouettes,
@@ -461,25 +462,35 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             initial_pose = _start_pose(sequence, body_model, initial_pose, key, start)
     if wanted:
         count = max(1, min(calibration_frames, frames))
-        say(f"{name}: calibrating the body's limb lengths and radii from the first {count} frames' silhouettes"
+        say(f"{name}: calibrating the body's limb lengths and radii from the first {count} frames' {' and '.join(recipe.observes)}"
             f"{'' if height is None else f' (height {height:g} m)'}")
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
+        calibration_inputs = (np.repeat(initial_pose[None], count, axis=0), jax.tree.map(lambda x: jnp.asarray(x[:count]), observations))
         try:
-            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, np.repeat(initial_pose[None], count, axis=0),
-                                                                   jax.tree.map(lambda x: jnp.asarray(x[:count]), observations),
-                                                                   height=height)
+            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, height=height)
         except ConfigurationError as err:
-            if body == "calibrate":  # asked for: the failure is the answer
-                raise ConfigurationError(f"{name}: {err}") from None
-            print(f"warning: {name}: {err}; tracking with the default body", file=sys.stderr)
-            wanted = False
+            failure, alone = err, keypoint_terms(likelihood)
+            if alone is not None:  # the joints' own cue, whatever the person's shape (docs/body.md)
+                print(f"warning: {name}: {err}; calibrating from the 2-D keypoints alone", file=sys.stderr)
+                try:
+                    calibrated, fitted_poses, calibration = calibrate_body(alone + floor, *calibration_inputs, height=height)
+                    calibrated, calibration = with_body(likelihood, body_of(calibrated)), calibration._replace(cues="keypoints")
+                    failure = None
+                except ConfigurationError as second:
+                    failure = second
+            if failure is not None and body == "calibrate":  # asked for: the failure is the answer
+                raise ConfigurationError(f"{name}: {failure}") from None
+            if failure is not None:
+                print(f"warning: {name}: {failure}; tracking with the default body", file=sys.stderr)
+                wanted = False
     if wanted:
         body_model = body_of(calibrated)
         likelihood = with_body(likelihood, body_model)
         initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key, start)
         say(f"{name}: calibrated limb lengths (mm): "
             + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
-            + f"; silhouette cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
+            + ("" if calibration.cues == "all" else f" (from the {calibration.cues} alone)")
+            + f"; cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
     if "images" in recipe.observes and wanted:  # again, on the calibrated body
         likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     report = None

@@ -26,7 +26,7 @@ from ..body import forward_kinematics, inverse_kinematics
 from ..camera import CameraRig
 from ..errors import ConfigurationError
 from ..filters import run_filter
-from ..likelihood import body_of, calibrate_body, make_ground_prior, with_body
+from ..likelihood import body_of, calibrate_body, keypoint_terms, make_ground_prior, with_body
 
 REFINE_FRAMES = 12  # frames of the second pass at 4 views of 160x120 or more (8 measured worse: docs/body.md)
 MAX_REFINE_FRAMES = 40  # the most frames a second pass fits (its cost grows with them)
@@ -97,11 +97,18 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
         raise ValueError("tracked_poses contain NaN or infinite values")
     picks = spread_frames(T, refine_frame_count(scene) if frames is None else frames)
     likelihood = scene.likelihood
+    keypoints_alone = scene.body_calibration is not None and scene.body_calibration.cues == "keypoints"
+    if keypoints_alone:  # as the first pass, whose silhouettes were refused (tracking.prepare_test)
+        likelihood = keypoint_terms(likelihood) or likelihood
+        if scene.ground_prior is not None:
+            likelihood = likelihood + scene.ground_prior
     if scene.ground_prior is None:  # the floor holds the ankles while the band hides the feet
         likelihood = likelihood + make_ground_prior(scene.body.skeleton, ground_clearance)
     observations = jax.tree.map(lambda x: jnp.asarray(x)[jnp.asarray(picks)], scene.observations)
     calibration_options.setdefault("proportion_sd", REFINE_PROPORTION_SD)
     fitted, fitted_poses, report = calibrate_body(likelihood, poses[picks], observations, **calibration_options)
+    if keypoints_alone:
+        report = report._replace(cues="keypoints")
     body = body_of(fitted)
     if start_joints is None:
         start = fitted_poses[0]
