@@ -2,7 +2,8 @@
 (``likelihood.calibrate_body``) of ``benchmarks/subject_body.py``'s test subject (limbs 10-14 %
 off the default, capsules 20 % thicker), from the default body, on its walk's first 4 frames in
 4 views at 160x120 (or ``--setting``), rendered by the tracker's capsules or by ``data.SolidBody``
-(``--renderer solid``: ellipsoids pinched at the joints, feet, an egg-shaped head), with
+(``--renderer solid``: ellipsoids pinched at the joints, feet, an egg-shaped head; ``solid-joints``:
+the same with the masses round the joints, ``SolidBody(joints=True)``), with
 
 - ``silhouettes``: the rendered noisy silhouettes (what ``prepare_test`` calibrates from);
 - ``keypoints``: the true joints projected into every view, plus N(0, ``--noise`` px) and
@@ -65,7 +66,7 @@ def main():
     parser.add_argument("--setting", default="4x160x120", help="VIEWSxWIDTHxHEIGHT")
     parser.add_argument("--noise", type=float, default=1.0, help="keypoint noise, pixels (sd); the likelihood's sigma is the same")
     parser.add_argument("--dropped", type=float, default=0.1, help="fraction of keypoints missing")
-    parser.add_argument("--renderer", choices=("capsules", "solid"), default="capsules", help="what draws the test scene")
+    parser.add_argument("--renderer", choices=("capsules", "solid", "solid-joints"), default="capsules", help="what draws the test scene")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     views, width, height = (int(v) for v in args.setting.split("x"))
@@ -73,7 +74,7 @@ def main():
     motion = generate_motion("walk", SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=RADIUS_FACTOR), num_frames=40,
                              fps=60.0, key=jax.random.fold_in(key, 500))
     rig = default_rig(width, height, num_views=views)
-    solid = SolidBody(motion.body.skeleton) if args.renderer == "solid" else None
+    solid = None if args.renderer == "capsules" else SolidBody(motion.body.skeleton, joints=args.renderer == "solid-joints")
     scene_seq = build_scene(jax.random.fold_in(key, 600), motion, rig, SilhouetteNoise(), solid=solid)
     test = scene_seq.replace(**dict.fromkeys(("pose", "pose_layout", "skeleton_offsets", "capsule_radii")))
     true_lengths = limb_lengths_of(motion.body)

@@ -11,17 +11,19 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxtrack.body import DEFAULT_LIMB_LENGTHS, humaneva_body, inverse_kinematics
-from jaxtrack.camera import default_rig
+from jaxtrack.body import DEFAULT_LIMB_LENGTHS, forward_kinematics, humaneva_body, inverse_kinematics
+from jaxtrack.camera import default_rig, project_points
 from jaxtrack.data import (
     NO_NOISE,
     DetectorNoise,
+    PhotoSettings,
     SilhouetteNoise,
     SolidBody,
     SubjectStyle,
     build_scene,
     detect_keypoints,
     generate_motion,
+    render_rgb,
     render_solid_silhouettes,
 )
 from jaxtrack.errors import ConfigurationError, SequenceFileError
@@ -150,6 +152,38 @@ def test_solid_body_is_another_renderer():
     assert 0.6 < overlap < 0.95  # the same person, not the same shape
     with pytest.raises(ValueError, match="without lens distortion"):
         render_solid_silhouettes(SolidBody(motion.body.skeleton), dataclasses.replace(rig, dist=rig.dist + 0.1), motion.pose[:1])
+
+
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
+def test_solid_body_with_joints_adds_the_joints_masses():
+    """``SolidBody(joints=True)``: the plain solids plus the shoulder girdle, deltoids, elbows
+    and knees, at those joints; its silhouettes hold the plain ones', and what they add lies by
+    the shoulders, elbows and knees."""
+    motion = generate_motion("walk", "S1", num_frames=2, fps=30.0, key=jax.random.key(0))
+    skeleton = motion.body.skeleton
+    plain, jointed = SolidBody(skeleton), SolidBody(skeleton, joints=True)
+    assert len(jointed.names) == len(plain.names) + 7 and jointed.names[: len(plain.names)] == plain.names
+    centres, axes = jointed.ellipsoids(jnp.asarray(motion.pose[0], jnp.float32))
+    assert centres.shape == (len(jointed.names), 3) and axes.shape == (len(jointed.names), 3, 3)
+    joints = np.asarray(forward_kinematics(skeleton, jnp.asarray(motion.pose[0], jnp.float32)))
+    knee = jointed.names.index("lknee")
+    np.testing.assert_allclose(np.asarray(centres[knee]), joints[skeleton.joint_index("lknee")], atol=1e-6)
+    girdle = jointed.names.index("girdle")  # across the shoulders, its half-span 1.1 x half theirs
+    span = np.linalg.norm(joints[skeleton.joint_index("lshoulder")] - joints[skeleton.joint_index("rshoulder")])
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(axes[girdle]), axis=0)[1], 0.55 * span, rtol=1e-5)
+    rig = default_rig(64, 48)
+    with_joints = render_solid_silhouettes(jointed, rig, motion.pose)
+    without = render_solid_silhouettes(plain, rig, motion.pose)
+    assert np.all(with_joints >= without) and with_joints.sum() > 1.01 * without.sum()
+    names = ("lshoulder", "rshoulder", "lelbow", "relbow", "lknee", "rknee")
+    every = np.asarray(forward_kinematics(skeleton, jnp.asarray(motion.pose, jnp.float32)))[:, [skeleton.joint_index(n) for n in names]]
+    uv = np.asarray(project_points(rig, jnp.asarray(every))[0])  # (T, 6, C, 2)
+    frame, view, v, u = np.nonzero(with_joints & ~without)
+    nearest = np.min(np.hypot(uv[frame, :, view, 0] - u[:, None], uv[frame, :, view, 1] - v[:, None]), axis=1)
+    assert nearest.max() < 6.0  # pixels, in a person about 30 pixels tall
+    _, masks = render_rgb(jax.random.key(0), jointed, rig, motion.pose, chunk=2, settings=PhotoSettings(samples=1))  # dressed alike
+    ray_cast = render_solid_silhouettes(jointed, rig, motion.pose, samples=1)
+    assert np.sum(np.asarray(masks).transpose(1, 0, 2, 3) != ray_cast) <= 0.01 * ray_cast.sum()
 
 
 def test_image_size_rule_for_sampled_pixels():

@@ -28,14 +28,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..camera import CameraRig, image_shape
-from ._solid_body import _SOLIDS, SolidBody, _rays
+from ._solid_body import SolidBody, _rays
 
-# Albedo (linear RGB in [0, 1]) of each solid's clothing, by ``_SOLIDS`` name.
+# Albedo (linear RGB in [0, 1]) of each solid's clothing, by ``SolidBody.names``.
 _SHIRT, _TROUSERS, _SKIN, _SHOES = (0.72, 0.20, 0.16), (0.20, 0.27, 0.47), (0.86, 0.64, 0.50), (0.12, 0.11, 0.10)
 PART_COLOURS = {
     "pelvis": _TROUSERS, "torso": _SHIRT, "neck": _SKIN, "head": _SKIN,
     "lupper_arm": _SHIRT, "lforearm": _SKIN, "lhand": _SKIN, "rupper_arm": _SHIRT, "rforearm": _SKIN, "rhand": _SKIN,
     "lthigh": _TROUSERS, "lshin": _TROUSERS, "lfoot": _SHOES, "rthigh": _TROUSERS, "rshin": _TROUSERS, "rfoot": _SHOES,
+    "girdle": _SHIRT, "ldeltoid": _SHIRT, "rdeltoid": _SHIRT, "lelbow": _SKIN, "relbow": _SKIN, "lknee": _TROUSERS, "rknee": _TROUSERS,
 }
 _STRIPED = ("torso", "lupper_arm", "rupper_arm")
 
@@ -198,12 +199,12 @@ def _shade_view(origin, dirs, background, centres, axes, albedo, striped, settin
 
 
 @eqx.filter_jit
-def _render_frames(key, frame_ids, skeleton, girth, poses, backgrounds, origins, directions, albedo, striped, settings, fps,
-                   drop):
+def _render_frames(key, frame_ids, skeleton, girth, joints, poses, backgrounds, origins, directions, albedo, striped, settings,
+                   fps, drop):
     """(frames, views, H, W, 3) uint8 pictures and (frames, views, H, W) bool true masks."""
 
     def frame(frame_id, pose):
-        centres, axes = SolidBody(skeleton, girth).ellipsoids(pose)
+        centres, axes = SolidBody(skeleton, girth, joints).ellipsoids(pose)
         centres = centres.at[:, 2].add(-drop)  # an empty scene: the solids far below the floor, out of every ray's way
         # lax.map, not vmap: one view at a time keeps every per-ray array fused and in cache (8x faster).
         colour, coverage = jax.lax.map(lambda odb: _shade_view(*odb, centres, axes, albedo, striped, settings),
@@ -245,8 +246,8 @@ def render_rgb(key, solid: SolidBody, rig: CameraRig, poses, *, settings: PhotoS
         raise ValueError(f"backgrounds must be (views, H, W, 3) = {(rig.num_views, height, width, 3)}, got {backgrounds.shape}")
     rig32 = jax.tree.map(lambda x: x.astype(dtype) if eqx.is_inexact_array(x) else x, rig)
     origins, directions = _rays(rig32, height, width, settings.samples)
-    albedo = jnp.asarray([PART_COLOURS[name] for name, *_ in _SOLIDS], dtype)
-    striped = jnp.asarray([name in _STRIPED for name, *_ in _SOLIDS], dtype)
+    albedo = jnp.asarray([PART_COLOURS[name] for name in solid.names], dtype)
+    striped = jnp.asarray([name in _STRIPED for name in solid.names], dtype)
     light = np.asarray(settings.light_direction, np.float64)
     values = {"light": light / np.linalg.norm(light), "ambient": settings.ambient, "stripes": settings.stripes,
               "shadow_strength": settings.shadow_strength, "lighting_change": settings.lighting_change,
@@ -260,8 +261,8 @@ def render_rgb(key, solid: SolidBody, rig: CameraRig, poses, *, settings: PhotoS
     skeleton = jax.tree.map(lambda x: x.astype(dtype) if eqx.is_inexact_array(x) else x, solid.skeleton)
 
     def render(k, ids, p):
-        return _render_frames(k, ids, skeleton, float(solid.girth), p, backgrounds, origins, directions, albedo, striped,
-                              values, jnp.asarray(fps, dtype), jnp.asarray(0.0 if with_body else 1e4, dtype))
+        return _render_frames(k, ids, skeleton, float(solid.girth), bool(solid.joints), p, backgrounds, origins, directions, albedo,
+                              striped, values, jnp.asarray(fps, dtype), jnp.asarray(0.0 if with_body else 1e4, dtype))
 
     pictures, masks = [], []
     for s in range(0, poses.shape[0], chunk):

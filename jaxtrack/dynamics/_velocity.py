@@ -43,8 +43,7 @@ from ._base import AbstractDynamics, AbstractDynamicsWrapper, AbstractRefinableD
 
 VELOCITY_DIM = 6  # forward, left, up (m/frame); yaw, pitch, roll rates (rad/frame)
 # A quarter of the draws restart from rest, set before any measurement (not tuned on the test
-# takes). On the real-motion rows of docs/trackers.md it lowered MRPF and LatentPF on all twelve
-# rows where both were measured with it ("A velocity that may restart from rest").
+# takes); what it does: docs/trackers.md, "A velocity that may restart from rest".
 REST_PROBABILITY = 0.25
 YAW = 3  # the root yaw's entry in a pose (and in every built-in state)
 

@@ -73,10 +73,9 @@ from ._silhouette import SilhouetteLikelihood
 
 PLAUSIBLE_FACTOR = (0.75, 1.33)  # a fitted limb length outside this range of its reference: not converged
 # The floor band's reach around each ankle's ground point (metres): a foot reaches 20-25 cm ahead of
-# the ankle and its shadow further; at 0.3 the noisy test walk's shins were still 2 cm long, at 0.45 within 1
-# (docs/body.md, "The floor band").
+# the ankle and its shadow further (chosen in docs/body.md, "The floor band").
 FLOOR_BAND_RADIUS = 0.45
-MAX_COST = 0.5  # 000 eq. 12's cost (mean over frames) a converged calibration ends below: clean 0.1, noisy 80x60 0.2-0.3
+MAX_COST = 0.5  # 000 eq. 12's cost (mean over frames) a converged calibration ends below (docs/body.md)
 
 
 class BodyCalibration(NamedTuple):

@@ -55,9 +55,8 @@ def build(fitted, likelihood, budget):
     return gpapf_filter(latent, likelihood, budget.per_layer, budget.layers - 1, final=final)
 
 
-# 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here: on real motion rendered
-# with another body it was better than 2 on all eight walk, jog and run rows, by 0.6-11 mm
-# (docs/trackers.md, "Where the manifold trackers start").
+# 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here, the better of the two on
+# real motion rendered with another body (docs/trackers.md, "Where the manifold trackers start").
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("gpapf", "GPAPF", "annealed filter over (global pose, latent point) with a final full-pose layer (001)",

@@ -31,10 +31,9 @@ def _mirrored(manifold):
     return MIRRORED_ANGLES if angles == len(MIRRORED_ANGLES) else None
 
 
-# Eq. 30's factor to the power 4 (its scales halved), chosen among 1, 2, 4 and 8 by tracking the four
-# real-motion protocols' validation takes, never their test takes: 8 scored 1.1 mm lower summed over
-# 8 cells of 15 runs, within its standard error of 1.2 mm, so the smaller change from the fit won
-# (the one-standard-error rule; docs/trackers.md, "Weighting MRPF's manifold").
+# Eq. 30's factor to the power 4 (its scales halved), chosen among 1, 2, 4 and 8 on the four
+# real-motion protocols' validation takes, never their test takes, by the one-standard-error rule
+# (docs/trackers.md, "Weighting MRPF's manifold").
 MANIFOLD_WEIGHT = 4.0
 
 

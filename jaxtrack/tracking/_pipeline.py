@@ -285,8 +285,8 @@ class TestScene:
 
 CALIBRATION_FRAMES = 4  # frames the body calibration fits (the first ones, their poses free)
 # The ankle's clearance above the floor during the calibration when none is measured (metres): an
-# adult's ankle joint stands 6-8 cm above the sole (CMU subject 35's takes: 60-73 mm). Without the
-# floor, foot shadows in noisy 80x60 views stretched the shins by 9-11 cm.
+# adult's ankle joint stands 6-8 cm above the sole. Without the floor, foot shadows stretch the
+# shins (docs/body.md, "The floor band").
 CALIBRATION_CLEARANCE = 0.06
 
 

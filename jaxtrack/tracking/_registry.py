@@ -18,14 +18,13 @@ import numpy as np
 from .._registries import Registry, check_name
 from ..manifold import ManifoldPrior, get_manifold_kind, manifold_kinds
 
-# A likelihood gradient per particle, in evaluations: 35-66 measured at 60-100 particles, 80x60,
-# 2 CPU cores (benchmarks/bench_gradient.py).
+# A likelihood gradient per particle, in evaluations (measured by benchmarks/bench_gradient.py;
+# docs/trackers.md, "Gradient-refined particles").
 GRADIENT_COST = 50.0
 # The latent trackers' default pose residual, a fading start: scale 0.05 of the pose random walk's
 # steps and a factor of 0.9 a frame, so the filter starts at the given pose (not at its
 # projection onto the manifold) and is back on the manifold within 20-30 frames (docs/gle.md,
-# "Starting off the manifold": frame 0 at 8-22 mm instead of 32-64 across people, the rest
-# unchanged).
+# "Starting off the manifold").
 FADING_START = (0.05, 0.9)
 @dataclasses.dataclass(frozen=True)
 class Budget:
