@@ -996,11 +996,12 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
                              "their clearance fitted on the validation motion (--no-ground-prior: the silhouettes alone) "
                              "(default: on)")
     _body_arguments(parser, sequences)
-    parser.add_argument("--refine-body", action=argparse.BooleanOptionalAction, default=True,
+    parser.add_argument("--refine-body", action=argparse.BooleanOptionalAction, default=None,
                         help="where the body is calibrated from the images, track once, calibrate it again on tracked frames "
                              "spread over the sequence (12 at 4 views of 160x120, up to 40 for smaller images; the knees and "
                              "elbows bent), then track with the refined body "
-                             "(default: on; --no-refine-body: the first frames' calibration alone)")
+                             "(default: where the start is given, not where it is found automatically, as from --video, whose "
+                             "tracks it made worse; --no-refine-body: the first frames' calibration alone)")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                              "(e.g. 80x60 for 320x240 data)")

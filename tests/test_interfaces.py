@@ -3,6 +3,7 @@ dynamics and refinement through their own constructors, refinable dynamics as a 
 the manifold's model, tracking prior and file format apart."""
 
 import dataclasses
+import types
 
 import jax
 import jax.numpy as jnp
@@ -111,6 +112,12 @@ def test_the_tracking_spec_is_validated_once_and_read_by_the_experiment():
                        ({"fit_optimiser": "adam"}, "fit_optimiser"), ({"resolution": (80, 0)}, "resolution")):
         with pytest.raises(ConfigurationError, match=match):
             TrackingSpec(**bad)
+    # The second body pass: only a calibrated body; by default where the start is given, not where it is found.
+    calibrated, given = types.SimpleNamespace(body_calibration=object()), types.SimpleNamespace(body_calibration=None)
+    assert TrackingSpec().refines_body(calibrated) and not TrackingSpec(start="auto").refines_body(calibrated)
+    assert TrackingSpec(start="auto", refine_body=True).refines_body(calibrated)
+    assert not TrackingSpec(refine_body=False).refines_body(calibrated)
+    assert not any(TrackingSpec(refine_body=r).refines_body(given) for r in (None, True, False))
     with pytest.raises(ValueError, match="equal annealing layers"):
         TrackingSpec(budget=301).check_method("apf")
     with pytest.raises(ValueError, match="sir"):

@@ -278,7 +278,7 @@ def _build(method: str, fitted: dict, likelihood, config: ExperimentConfig, vali
 
 
 def _refined(scene, name: str, method: str, fitted: dict, config: ExperimentConfig, inputs: ExperimentInputs, results: dict, say):
-    """``config.refine_body``: the calibrated body refined on one run of ``method``
+    """``config.refines_body(scene)``: the calibrated body refined on one run of ``method``
     (``tracking.track_and_refine_body``), recorded in ``results["bodies"][name]``."""
     _, run_root = tracker_keys(config.seed, method)
     tracker = _build(method, fitted, scene.likelihood, config, inputs.validation_poses)
@@ -300,7 +300,7 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
     validation_poses = inputs.validation_poses
     methods = [m for m in config.methods if m in fitted]
     for index, (scene, name) in enumerate(zip(inputs.scenes, inputs.test_names)):
-        if config.refine_body and scene.body_calibration is not None and methods:
+        if config.refines_body(scene) and methods:
             scene = inputs.scenes[index] = _refined(scene, name, methods[0], fitted, config, inputs, results, say)
         if scene.shape_calibration is not None:
             report = scene.shape_calibration

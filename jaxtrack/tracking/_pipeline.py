@@ -708,7 +708,10 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
                              residual_decay=spec.residual_decay_of(method))
 
     tracker = build(scene.likelihood)
-    if spec.refine_body and scene.body_calibration is not None:
+    if scene.body_calibration is not None and not spec.refines_body(scene):
+        say(f"{name}: no second body pass" + (" (the start was found automatically: docs/video.md; --refine-body for one)"
+                                             if spec.refine_body is None else ""))
+    if spec.refines_body(scene):
         say(f"{name}: refining the calibrated body on {refine_frame_count(scene)} frames of a first {recipe.label} run, "
             "spread over the sequence")
         scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=spec.start == "truth", ground_clearance=clearance,

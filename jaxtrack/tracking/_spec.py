@@ -72,9 +72,12 @@ class TrackingSpec:
             one tracker run's estimates at frames spread over the sequence (``tracking.refine_body``:
             the knees and elbows bend there, where the first frames hold them straight), then track
             with the refined body; one more tracking run per calibrated test sequence
-            (``track_sequence``: the tracker's own; ``run_experiment``: the first method's). On by
-            default: the trackers came within 3-15 % of the true body's error, from 13-23 %
-            (docs/body.md).
+            (``track_sequence``: the tracker's own; ``run_experiment``: the first method's). None
+            (the default): where the start is given (``start="truth"``: the trackers came within
+            3-15 % of the true body's error, from 13-23 %, docs/body.md), not where it is found
+            automatically (``start="auto"``: the first run is then off for its first 20-40 frames,
+            and the second pass made the filmed scenes' tracks worse, docs/video.md); True or
+            False: always or never (``refines_body``).
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
         ground_prior: multiply every tracker's likelihood by the ground plane's prior, the feet
@@ -115,7 +118,7 @@ class TrackingSpec:
     pixel_samples: int | str | None = "auto"
     body: str = "auto"
     height: float | None = None
-    refine_body: bool = True
+    refine_body: bool | None = None
     calibrate_shape: bool = False
     ground_prior: bool = True
     velocity: bool | None = None
@@ -136,8 +139,8 @@ class TrackingSpec:
                                                              or not isinstance(self.pixel_samples, int) or self.pixel_samples < 4):
             raise ConfigurationError(f"pixel_samples must be a whole number >= 4 (per view and frame; one per stratum), 0 or None "
                                      f"(every pixel) or 'auto', got {self.pixel_samples!r}")
-        if not isinstance(self.refine_body, bool):
-            raise ConfigurationError(f"refine_body must be True or False, got {self.refine_body!r}")
+        if self.refine_body is not None and not isinstance(self.refine_body, bool):
+            raise ConfigurationError(f"refine_body must be True, False or None (by the start), got {self.refine_body!r}")
         if self.body not in BODY_CHOICES:
             raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
         if self.start not in START_CHOICES:
@@ -173,6 +176,13 @@ class TrackingSpec:
     def tracking_budget(self) -> Budget:
         """The per-frame ``Budget`` every tracker spends."""
         return Budget(self.budget, self.layers, self.refine_steps, self.gradient_cost)
+
+    def refines_body(self, scene) -> bool:
+        """Whether ``scene`` (``prepare_test``'s) gets the second body pass: only a body calibrated
+        from the images, and by ``refine_body`` (None: where the start is given)."""
+        if scene.body_calibration is None:
+            return False
+        return self.start == "truth" if self.refine_body is None else self.refine_body
 
     def tracking_fields(self) -> dict:
         """This spec's own fields (a subclass's extra settings left out)."""
