@@ -9,7 +9,11 @@ with feet, hands and an elliptical torso, ray-cast exactly). The trackers are fi
 demo's training and validation motion (subjects S1 and S2), then track each scene with the body
 
 - ``default``: the default body, the start pose solved on it by inverse kinematics;
-- ``joints``: the skeleton inverse kinematics fits to the file's joints (``body="auto"``);
+- ``joints``: the skeleton inverse kinematics fits to the file's joints (``body="auto"``), the
+  capsule radii fitted to 12 frames spread over the scene at the joints' poses (``prepare_test``'s
+  ``fit_radii``, on by default for such files since 2026-11-29);
+- ``joints-default-radii``: the same skeleton with the default radii (``fit_radii=False``: the
+  ``joints`` condition before 2026-11-29);
 - ``calibrated``: limb lengths and radii fitted to the first 4 frames' silhouettes from the
   default body (``likelihood.calibrate_body``), then frame 0's joints solved on the calibrated
   skeleton for the start (the file's joints are used for nothing else); a calibration that does
@@ -24,7 +28,10 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   the start; the trackers track the silhouettes alone with that body, as in the other conditions;
 - ``keypoints-refined``: ``keypoints``, then the second pass on a ``--refine-with`` run that
   tracks both cues (``tracking.refine_body``, on the keypoints alone where the first pass was);
-- ``true``: the subject's own skeleton and capsule radii written into the file.
+- ``true``: the subject's own skeleton and capsule radii written into the file;
+- ``true-shape``: the subject's own skeleton, and the radii fitted to ``--shape-frames``
+  frames' silhouettes spread over the scene at the true poses (the lengths held:
+  ``calibrate_body`` with tight priors): how much of a renderer's shape the capsules can take up.
 
     taskset -c 0,1 python benchmarks/subject_body.py --runs 5 --budget 500 --json subject_body.json
 
@@ -42,7 +49,7 @@ from bench_output import add_output_arguments, pin_threads, write_json
 LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm", 0.87), ("forearm", 1.13), ("hip", 0.88),
                 ("thigh", 1.12), ("shin", 0.86))
 RADIUS_FACTOR = 1.2
-CONDITIONS = ("default", "joints", "calibrated", "refined", "keypoints", "keypoints-refined", "true")
+CONDITIONS = ("default", "joints", "joints-default-radii", "calibrated", "refined", "keypoints", "keypoints-refined", "true", "true-shape")
 SETTINGS = {"4x160x120": (4, 160, 120), "3x80x60": (3, 80, 60)}
 
 
@@ -58,6 +65,7 @@ def main():
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--keypoint-noise", type=float, default=1.0, help="the keypoints condition's detection noise, pixels (sd)")
     parser.add_argument("--refine-with", default="mrpf", help="the tracker whose run the refined condition calibrates on")
+    parser.add_argument("--shape-frames", type=int, default=12, help="frames the true-shape condition fits the radii on")
     parser.add_argument("--refine-frames", type=int, default=None,
                         help="frames of the refined condition's second pass (default: tracking.refine_frame_count, 12 at 4x160x120)")
     add_output_arguments(parser, plot="draw frame 0 of the walk in the first setting's views, rendered by both renderers, "
@@ -77,13 +85,14 @@ def main():
     from jaxtrack.errors import ConfigurationError
     from jaxtrack.evaluation import mean_joint_error_mm, per_frame_error_mm
     from jaxtrack.experiment import ExperimentConfig, shared_window
-    from jaxtrack.likelihood import with_body
+    from jaxtrack.likelihood import body_of, calibrate_body, with_body
     from jaxtrack.tracking import (
         add_ground_prior,
         build_tracker,
         fit_manifold,
         fit_tracker,
         get_tracker,
+        limb_lengths_of,
         motion_clearance,
         motion_data,
         prepare_test,
@@ -147,6 +156,17 @@ def main():
         return dataclasses.replace(scene, likelihood=with_body(scene.likelihood, body), body=body, initial_pose=start,
                                    body_calibration=calibrated.body_calibration, start_error_mm=error)
 
+    def fitted_shape(scene):
+        """``scene`` (its body the subject's skeleton) with the radii fitted at the true poses of
+        ``--shape-frames`` frames, the limb lengths held."""
+        frames = np.round(np.linspace(0, scene.num_frames - 1, args.shape_frames)).astype(int)
+        observations = jax.tree.map(lambda x: x[frames], scene.observations)
+        fitted, _, report = calibrate_body(scene.likelihood, np.asarray(scene.truth_poses, np.float64)[frames], observations,
+                                           prior_lengths=limb_lengths_of(scene.body), scale_sd=1e-4, proportion_sd=1e-4,
+                                           pose_sd_m=0.005, pose_sd_rad=0.01, neutral_dofs=())
+        return dataclasses.replace(scene, likelihood=with_body(scene.likelihood, body_of(fitted)), body=body_of(fitted),
+                                   body_calibration=report)
+
     rows = []
     for setting in args.settings:
         views, width, height = SETTINGS[setting]
@@ -161,13 +181,15 @@ def main():
                 start = time.perf_counter()
                 row = {"setting": setting, "renderer": renderer, "condition": condition, "methods": {}, "scenes": {}}
                 for scene_seq, gait in zip(scenes, ("walk", "jog")):
-                    keep = ("skeleton_offsets", "capsule_radii") if condition == "true" else ()
+                    keep = ("skeleton_offsets", "capsule_radii") if condition.startswith("true") else ()
                     drop = {k: None for k in ("pose", "pose_layout", "skeleton_offsets", "capsule_radii") if k not in keep}
                     test = scene_seq.replace(**drop)
                     body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "refined": "calibrate",
-                            "keypoints": "default", "keypoints-refined": "default", "true": "auto"}[condition]
+                            "keypoints": "default", "keypoints-refined": "default"}.get(condition, "auto")
+                    fit_radii = False if condition == "joints-default-radii" else None
                     try:
-                        scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance)
+                        scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance,
+                                             fit_radii=fit_radii)
                         if condition.startswith("keypoints"):
                             scene = keypoint_body(scene, test, gait, refine=condition == "keypoints-refined")
                     except ConfigurationError as err:  # a calibration that did not converge: reported, not tracked
@@ -175,6 +197,8 @@ def main():
                         print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)
                         continue
                     scene = add_ground_prior(scene, clearance)
+                    if condition == "true-shape":
+                        scene = fitted_shape(scene)
                     if condition == "refined":
                         tracker = make_tracker(args.refine_with, scene)
                         first, _, _ = track_runs(tracker, jax.random.fold_in(roots[args.refine_with], 10_000)[None], scene)

@@ -1002,6 +1002,10 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
                              "elbows bent), then track with the refined body "
                              "(default: where the start is given, not where it is found automatically, as from --video, whose "
                              "tracks it made worse; --no-refine-body: the first frames' calibration alone)")
+    parser.add_argument("--fit-radii", action=argparse.BooleanOptionalAction, default=None,
+                        help="fit the capsule radii to the silhouettes of 12 frames spread over each test sequence at their "
+                             "ground-truth poses, the skeleton kept (default: where the skeleton is fitted to the file's joints "
+                             "and the file gives no radii; --no-fit-radii: the default radii there)")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
                              "(e.g. 80x60 for 320x240 data)")
@@ -1033,7 +1037,8 @@ def _spec_fields(args) -> dict:
     return {
         "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood, "likelihood_options": _likelihood_options(args),
         "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
-        "body": _body_choice(args), "height": args.height, "refine_body": args.refine_body, "resolution": args.resolution,
+        "body": _body_choice(args), "height": args.height, "refine_body": args.refine_body, "fit_radii": args.fit_radii,
+        "resolution": args.resolution,
         "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
         "velocity": args.velocity, "residual": args.residual, "residual_decay": args.residual_decay,
     }

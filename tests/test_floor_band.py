@@ -50,6 +50,7 @@ def test_floor_points_invert_the_projection_of_floor_points(standing):
     assert not np.any(np.asarray(hits))
 
 
+@pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (docs/testing.md)
 def test_the_band_leaves_out_what_lies_on_the_floor_by_the_feet(standing):
     body, rig, pose, observed = standing
     dense = make_silhouette_likelihood(body, rig, scale=1.0, window=None)

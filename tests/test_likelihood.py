@@ -196,6 +196,10 @@ def test_masks_of_any_convention_score_alike_and_a_transposed_frame_is_refused(s
         jitted(likelihood, poses, jnp.swapaxes(frame, 1, 2))
     with pytest.raises(ValueError, match=r"got \(3, 30, 40\)"):
         jitted(likelihood, poses, frame[:3])
+    # One NaN pixel in a 4x30x40 float32 frame: XLA's vectorised min and max on a CPU pass it over
+    # (they return 0 and 1), so the check tests every element (docs/robustness.md).
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        likelihood.log_likelihood(poses, jnp.asarray(frame, jnp.float32).at[0, 0, 0].set(jnp.nan))
 
 
 def test_suggest_window_ignores_clutter():

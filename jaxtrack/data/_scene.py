@@ -194,7 +194,8 @@ def build_scene(
         motion: poses and joints to render (e.g. from ``generate_motion``).
         rig: cameras (all views of one image size).
         noise: background-subtraction noise settings (``NO_NOISE`` for clean silhouettes).
-        chunk: frames rendered per jitted call.
+        chunk: frames rendered per jitted call; a shorter scene (and the last chunk) is padded to
+            it, so scenes of any length at one image size share one compiled renderer.
         progress: show a progress bar.
         solid: render the person as this ``SolidBody`` (ellipsoids ray-cast exactly: feet, an
             elliptical torso, tapered limbs) instead of the motion's capsules, so that the test
@@ -221,7 +222,7 @@ def build_scene(
     ankle_index = (skeleton.joint_index("lankle"), skeleton.joint_index("rankle"))
     frames = jnp.arange(poses.shape[0])
     noise_arrays = noise.as_arrays(dtype)
-    chunk = max(1, min(int(chunk), poses.shape[0]))
+    chunk = max(1, int(chunk))
 
     out = []
     starts = range(0, poses.shape[0], chunk)

@@ -64,7 +64,7 @@ import optax
 from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_lengths_for_height
 from ..errors import ConfigurationError
 from ._base import AbstractLikelihood
-from ._calibration import symmetric_groups
+from ._calibration import ShapeCalibration, symmetric_groups
 from ._floor_band import FloorBandSilhouette
 from ._ground import GroundPlanePrior
 from ._keypoints import KeypointLikelihood
@@ -76,6 +76,8 @@ PLAUSIBLE_FACTOR = (0.75, 1.33)  # a fitted limb length outside this range of it
 # the ankle and its shadow further (chosen in docs/body.md, "The floor band").
 FLOOR_BAND_RADIUS = 0.45
 MAX_COST = 0.5  # 000 eq. 12's cost (mean over frames) a converged calibration ends below (docs/body.md)
+# ``fit_radii``: the prior sds that hold the limb lengths (log) and the poses (metres, radians) where they are.
+HELD_LENGTH_SD, HELD_POSE_SD_M, HELD_POSE_SD_RAD = 1e-4, 0.005, 0.01
 
 
 class BodyCalibration(NamedTuple):
@@ -431,3 +433,41 @@ def _fit(likelihood, body, structure, observations, prior, sds, data_weight, u0,
 
     (u, _), (trace, costs) = jax.lax.scan(step, (u0, optimiser.init(u0)), None, length=steps)
     return u, trace, costs
+
+
+def fit_radii(likelihood: AbstractLikelihood, poses, observations, **options) -> tuple[AbstractLikelihood, ShapeCalibration]:
+    """The body's capsule radii fitted to frames whose poses are known, its skeleton kept.
+
+    ``calibrate_body`` with the limb lengths held at the body's (prior sd ``HELD_LENGTH_SD`` on
+    their logs) and the poses at the given ones (``HELD_POSE_SD_M``, ``HELD_POSE_SD_RAD``), every
+    dof free of the clavicles' rest prior: its data weight, sharpened edge and floor band (with a
+    ``GroundPlanePrior`` in the likelihood), which ``calibrate_shape`` does not have. For a file
+    whose joints give the skeleton and the poses but not the person's girth, on frames spread over
+    the scene (``tracking.prepare_test``'s ``fit_radii``; measured in docs/body.md, "The radii of a
+    body fitted to joints"). No ceiling on the final cost (``max_cost`` None unless given): with the
+    skeleton and poses held a high cost says the images hold more than the capsules draw (a
+    body of another shape, 80x60 noise), not that the fit went astray; a cost that rose is
+    still refused.
+
+    Args:
+        likelihood: any likelihood that renders a body (the silhouettes' carry the radii).
+        poses: (F, D) the frames' poses on the body's skeleton.
+        observations: the F frames' observations, a leading F axis on every leaf.
+        options: further ``calibrate_body`` settings (``radius_sd``, ``steps``, ...).
+
+    Returns:
+        ``(likelihood with the fitted radii and its own skeleton, ShapeCalibration)``.
+
+    Raises:
+        ConfigurationError: a fit that does not converge (``calibrate_body``'s checks).
+    """
+    body = body_of(likelihood)
+    names, _, _, lengths = _limb_structure(body)
+    fitted, _, report = calibrate_body(likelihood, poses, observations, prior_lengths=dict(zip(names, lengths)),
+                                       scale_sd=HELD_LENGTH_SD, proportion_sd=HELD_LENGTH_SD, pose_sd_m=HELD_POSE_SD_M,
+                                       pose_sd_rad=HELD_POSE_SD_RAD, neutral_dofs=(), **{"max_cost": None, **options})
+    radii = body_of(fitted).radii
+    new_body = eqx.tree_at(lambda b: b.radii, body, radii)  # the skeleton exactly as it was (left and right untied)
+    return with_body(likelihood, new_body), ShapeCalibration(
+        capsule_names=body.capsule_names, radii_before=report.radii_before, radii_after=np.asarray(radii, np.float64),
+        cost_before=report.cost_before, cost_after=report.cost_after, trace=report.trace)

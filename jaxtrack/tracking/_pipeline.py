@@ -60,8 +60,11 @@ from ..likelihood import (
     set_references,
     with_body,
 )
+from ..likelihood import (
+    fit_radii as fit_capsule_radii,
+)
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
-from ._refine_body import refine_frame_count, track_and_refine_body
+from ._refine_body import refine_frame_count, spread_frames, track_and_refine_body
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
@@ -295,6 +298,9 @@ CALIBRATION_CLEARANCE = 0.06
 # start was worse than the default body's (docs/body.md); at 160x120 (55 pixels) it was better on
 # clean views.
 MIN_CALIBRATION_PIXELS = 45
+# Frames spread over a scene that ``prepare_test(fit_radii=...)`` fits the capsule radii on, at the poses
+# the file's joints give (docs/body.md, "The radii of a body fitted to joints").
+RADII_FRAMES = 12
 
 
 def person_height_pixels(masks) -> float:
@@ -354,7 +360,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None,
                  likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None,
                  start: str = "truth", start_model=None, root_height: float | None = None,
-                 start_search: StartSearch | None = None) -> TestScene:
+                 start_search: StartSearch | None = None, fit_radii: bool | None = None) -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames (at most the sequence's), all when None).
 
@@ -365,8 +371,13 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     from the given start pose, the feet kept out of the floor by the ground plane's prior at
     ``ground_clearance``, default ``CALIBRATION_CLEARANCE``); ``"calibrate"`` always calibrates, ``"default"`` never (the
     default body, poses solved on it), ``"joints"`` fits to the joints even over a file's
-    skeleton. With ``calibrate``, the capsule radii alone are fitted to the first frame at the
-    initial pose (``likelihood.calibrate_shape``). With ``resolution`` = (width, height), the
+    skeleton. ``fit_radii``: the capsule radii fitted to the silhouettes of ``RADII_FRAMES`` frames
+    spread over the scene at their ground-truth poses, the skeleton kept (``likelihood.fit_radii``);
+    None: where the body is the one fitted to the file's joints, the file gives no
+    ``capsule_radii`` (HumanEva's case: joints, not the person's girth) and the person is at least
+    ``MIN_CALIBRATION_PIXELS`` tall (at 80x60 the fit changed nothing: docs/body.md). With ``calibrate``, the
+    capsule radii alone are fitted to the first frame at the initial pose
+    (``likelihood.calibrate_shape``). With ``resolution`` = (width, height), the
     silhouettes are block-averaged down to it and the cameras rescaled (``Sequence.resized``). With
     ``pixel_samples`` = n, the likelihood (or its silhouette term) is the ``SampledSilhouetteLikelihood`` on n stratified
     pixels per view and frame (``sample_frames`` with ``fold_in(key, PIXEL_SAMPLE_TAG)``, drawn
@@ -494,6 +505,33 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if "images" in recipe.observes and wanted:  # again, on the calibrated body
         likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     report = None
+    radii_wanted = fit_radii
+    if fit_radii is None:  # a body fitted to joints, no radii in the file, a person tall enough to measure
+        radii_wanted = resolved.source == "fitted to joints" and sequence.capsule_radii is None
+        if radii_wanted and tall < MIN_CALIBRATION_PIXELS:
+            say(f"{name}: the person is {tall:.0f} pixels tall, too small to fit the capsule radii to (under "
+                f"{MIN_CALIBRATION_PIXELS}: docs/body.md): the default radii (--fit-radii to fit them all the same)")
+            radii_wanted = False
+    if radii_wanted and not wanted:
+        if "silhouettes" not in recipe.observes or truth_poses is None:
+            if fit_radii:  # asked for, and impossible
+                raise ConfigurationError(f"{name}: fitting the capsule radii needs silhouettes and the ground-truth poses of the "
+                                         f"frames (the {recipe.name} likelihood, {'with' if truth_poses is not None else 'no'} "
+                                         "ground truth)")
+        else:
+            picks = spread_frames(frames, RADII_FRAMES)
+            say(f"{name}: fitting the capsule radii to {len(picks)} frames' silhouettes at the poses its joints give")
+            floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
+            try:
+                fitted, report = fit_capsule_radii(likelihood + floor, np.asarray(truth_poses, np.float64)[picks],
+                                                   jax.tree.map(lambda x: jnp.asarray(x[picks]), observations))
+            except ConfigurationError as err:
+                if fit_radii:  # asked for: the failure is the answer
+                    raise ConfigurationError(f"{name}: fitting the capsule radii: {err}") from None
+                print(f"warning: {name}: fitting the capsule radii: {err}; tracking with the default radii", file=sys.stderr)
+            else:
+                body_model = body_of(fitted)
+                likelihood = with_body(likelihood, body_model)
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])
         body_model = likelihood.body

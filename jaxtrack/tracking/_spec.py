@@ -80,6 +80,14 @@ class TrackingSpec:
             False: always or never (``refines_body``).
         calibrate_shape: fit the body's capsule radii to each test sequence's first frame at
             its initial pose before tracking (``jaxtrack.likelihood.calibrate_shape``).
+        fit_radii: fit the capsule radii to the silhouettes of 12 frames spread over each test
+            sequence at their ground-truth poses, the skeleton kept (``tracking.prepare_test``,
+            ``likelihood.fit_radii``). None (the default): where the body is fitted to the file's
+            joints, the file has no radii and the person is 45 pixels tall or more
+            (the limb calibration's size rule; HumanEva's files: for a subject 20 % thicker than the
+            default, MRPF 15.2 -> 12.3 mm and LatentPF 13.0 -> 11.1 at 4 views of 160x120; even on
+            a body of another shape: docs/body.md, "The radii of a body fitted to joints"); True
+            or False: always (a file with ground truth) or never.
         ground_prior: multiply every tracker's likelihood by the ground plane's prior, the feet
             kept out of the floor (``jaxtrack.likelihood.GroundPlanePrior``; the floor at world
             z = 0, the ankle's clearance above it fitted on the validation motion).
@@ -120,6 +128,7 @@ class TrackingSpec:
     height: float | None = None
     refine_body: bool | None = None
     calibrate_shape: bool = False
+    fit_radii: bool | None = None
     ground_prior: bool = True
     velocity: bool | None = None
     residual: float | None = None
@@ -141,6 +150,8 @@ class TrackingSpec:
                                      f"(every pixel) or 'auto', got {self.pixel_samples!r}")
         if self.refine_body is not None and not isinstance(self.refine_body, bool):
             raise ConfigurationError(f"refine_body must be True, False or None (by the start), got {self.refine_body!r}")
+        if self.fit_radii is not None and not isinstance(self.fit_radii, bool):
+            raise ConfigurationError(f"fit_radii must be True, False or None (by the file), got {self.fit_radii!r}")
         if self.body not in BODY_CHOICES:
             raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
         if self.start not in START_CHOICES:
@@ -238,6 +249,7 @@ class TrackingSpec:
     def scene_options(self) -> dict:
         """The keyword arguments of ``prepare_test`` this spec decides (the likelihood, its
         images and the body)."""
-        return {"likelihood_scale": self.likelihood_scale, "calibrate": self.calibrate_shape, "resolution": self.resolution,
+        return {"likelihood_scale": self.likelihood_scale, "calibrate": self.calibrate_shape, "fit_radii": self.fit_radii,
+                "resolution": self.resolution,
                 "pixel_samples": self.pixel_samples, "body": self.body, "height": self.height, "likelihood": self.likelihood,
                 "likelihood_options": dict(self.likelihood_options)}
