@@ -13,7 +13,8 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   capsule radii fitted to 12 frames spread over the scene at the joints' poses (``prepare_test``'s
   ``fit_radii``, on by default for such files since 2026-11-29);
 - ``joints-default-radii``: the same skeleton with the default radii (``fit_radii=False``: the
-  ``joints`` condition before 2026-11-29);
+  ``joints`` condition before 2026-11-29); ``joints-fitted-radii``: the radii fitted whatever the
+  person's size in pixels (``fit_radii=True``);
 - ``calibrated``: limb lengths and radii fitted to the first 4 frames' silhouettes from the
   default body (``likelihood.calibrate_body``), then frame 0's joints solved on the calibrated
   skeleton for the start (the file's joints are used for nothing else); a calibration that does
@@ -49,7 +50,8 @@ from bench_output import add_output_arguments, pin_threads, write_json
 LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm", 0.87), ("forearm", 1.13), ("hip", 0.88),
                 ("thigh", 1.12), ("shin", 0.86))
 RADIUS_FACTOR = 1.2
-CONDITIONS = ("default", "joints", "joints-default-radii", "calibrated", "refined", "keypoints", "keypoints-refined", "true", "true-shape")
+CONDITIONS = ("default", "joints", "joints-default-radii", "joints-fitted-radii", "calibrated", "refined", "keypoints",
+              "keypoints-refined", "true", "true-shape")
 SETTINGS = {"4x160x120": (4, 160, 120), "3x80x60": (3, 80, 60)}
 
 
@@ -186,7 +188,7 @@ def main():
                     test = scene_seq.replace(**drop)
                     body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "refined": "calibrate",
                             "keypoints": "default", "keypoints-refined": "default"}.get(condition, "auto")
-                    fit_radii = False if condition == "joints-default-radii" else None
+                    fit_radii = {"joints-default-radii": False, "joints-fitted-radii": True}.get(condition)
                     try:
                         scene = prepare_test(test, f"X {gait}", key=key, body=body, window=window, ground_clearance=clearance,
                                              fit_radii=fit_radii)
