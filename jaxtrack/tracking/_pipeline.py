@@ -374,7 +374,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     skeleton. ``fit_radii``: the capsule radii fitted to the silhouettes of ``RADII_FRAMES`` frames
     spread over the scene at their ground-truth poses, the skeleton kept (``likelihood.fit_radii``);
     None: where the body is the one fitted to the file's joints, the file gives no
-    ``capsule_radii`` (HumanEva's case: joints, not the person's girth) and the person is at least
+    ``capsule_radii`` (HumanEva's case: joints, not the person's girth), the start is given
+    (``start="truth"``: an automatic start uses no ground-truth pose) and the person is at least
     ``MIN_CALIBRATION_PIXELS`` tall (at 80x60 the fit changed nothing: docs/body.md). With ``calibrate``, the
     capsule radii alone are fitted to the first frame at the initial pose
     (``likelihood.calibrate_shape``). With ``resolution`` = (width, height), the
@@ -506,8 +507,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
     report = None
     radii_wanted = fit_radii
-    if fit_radii is None:  # a body fitted to joints, no radii in the file, a person tall enough to measure
-        radii_wanted = resolved.source == "fitted to joints" and sequence.capsule_radii is None
+    if fit_radii is None:  # a body fitted to joints, no radii in the file, the start given, a person tall enough to measure
+        radii_wanted = resolved.source == "fitted to joints" and sequence.capsule_radii is None and start == "truth"
         if radii_wanted and tall < MIN_CALIBRATION_PIXELS:
             say(f"{name}: the person is {tall:.0f} pixels tall, too small to fit the capsule radii to (under "
                 f"{MIN_CALIBRATION_PIXELS}: docs/body.md): the default radii (--fit-radii to fit them all the same)")

@@ -83,7 +83,8 @@ class TrackingSpec:
         fit_radii: fit the capsule radii to the silhouettes of 12 frames spread over each test
             sequence at their ground-truth poses, the skeleton kept (``tracking.prepare_test``,
             ``likelihood.fit_radii``). None (the default): where the body is fitted to the file's
-            joints, the file has no radii and the person is 45 pixels tall or more
+            joints, the file has no radii, the start is given (``start="truth"``) and the person is
+            45 pixels tall or more
             (the limb calibration's size rule; HumanEva's files: for a subject 20 % thicker than the
             default, MRPF 15.2 -> 12.3 mm and LatentPF 13.0 -> 11.1 at 4 views of 160x120; even on
             a body of another shape: docs/body.md, "The radii of a body fitted to joints"); True
