@@ -6,7 +6,10 @@ same process, is the reference: each line carries the ratio ``fps / fps_SIR``.
     taskset -c 0,1 python benchmarks/bench_trackers.py --budgets 100 500 2000 --frames 30 --repeats 3 --json trackers.json
     taskset -c 0,1 python benchmarks/bench_trackers.py --methods vlmmpf mrpf --budgets 500 --likelihood blobs
 
-``--likelihood`` tracks with another registered likelihood (default the silhouettes').
+``--likelihood`` tracks with another registered likelihood (default the silhouettes'); one that reads
+images (``colour-blobs``) gets the test take filmed in colour by ``data.render_rgb``.
+
+    taskset -c 0,1 python benchmarks/bench_trackers.py --methods vlmmpf mrpf --budgets 500 --likelihood colour-blobs
 
 Prints one JSON line per (method, budget) and, with ``--json PATH``, writes the list there.
 """
@@ -38,6 +41,7 @@ def main():
 
     from jaxtrack.demo import demo_sequences
     from jaxtrack.filters import run_filter
+    from jaxtrack.likelihood import get_likelihood
     from jaxtrack.tracking import (
         PAPER_TRACKERS,
         Budget,
@@ -66,7 +70,13 @@ def main():
             motions[spec] = motion_data(train_poses, validation_poses, model, starts)
         fitted[m] = fit_tracker(recipe, tracker_keys(0, m)[0], motions[spec])
     options = {k: float(v) for k, v in (item.split("=", 1) for item in args.likelihood_option)}
-    scene = prepare_test(test[0], "S1 walk", key=key, likelihood=args.likelihood, likelihood_options=options)
+    sequence = test[0]
+    if "images" in get_likelihood(args.likelihood).observes:  # filmed in colour: the solid body over a photograph
+        from jaxtrack.data import SolidBody, render_rgb
+
+        pictures, _ = render_rgb(key, SolidBody(sequence.body().skeleton), sequence.rig(), sequence.pose, fps=sequence.fps)
+        sequence = sequence.replace(images=np.asarray(pictures))
+    scene = prepare_test(sequence, "S1 walk", key=key, likelihood=args.likelihood, likelihood_options=options)
     rows = []
     for budget in args.budgets:
         reference = None

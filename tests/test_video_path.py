@@ -121,6 +121,12 @@ def test_the_automatic_start_lands_near_the_truth_without_reading_it():
     assert error < 60, error
     scored = prepare_test(scene, "scored", key=jax.random.key(0), body="default", start="auto", start_model=model, root_height=height)
     assert scored.start_error_mm == pytest.approx(error, abs=1e-3)
+    # 004's blobs fit their evidence from a start: the search reads the silhouettes' likelihood, so it finds the same pose
+    said = []
+    blobs = prepare_test(blind, "blobs", key=jax.random.key(0), body="default", start="auto", start_model=model, root_height=height,
+                         likelihood="blobs", say=said.append)
+    np.testing.assert_array_equal(np.asarray(blobs.initial_pose), np.asarray(found.initial_pose))
+    assert any("searched with the silhouette likelihood" in line for line in said)
     with pytest.raises(ValueError, match="start_model and root_height"):
         prepare_test(scene, "x", key=jax.random.key(0), start="auto")
     with pytest.raises(ValueError, match="needs ground truth"):

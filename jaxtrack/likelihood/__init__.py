@@ -14,10 +14,13 @@ from ._base import evidence_scorer as evidence_scorer
 from ._base import has_evidence as has_evidence
 from ._base import lost_threshold as lost_threshold
 from ._base import set_references as set_references
+from ._blobs import COLOUR_FLOOR as COLOUR_FLOOR
 from ._blobs import LOST_DIVERGENCE as LOST_DIVERGENCE
 from ._blobs import BlobEvidence as BlobEvidence
 from ._blobs import BlobLikelihood as BlobLikelihood
+from ._blobs import blob_colours as blob_colours
 from ._blobs import carve as carve
+from ._blobs import compact_voxels as compact_voxels
 from ._blobs import fit_blobs as fit_blobs
 from ._blobs import footprint_radii as footprint_radii
 from ._blobs import gaussian_kl as gaussian_kl
@@ -26,6 +29,7 @@ from ._blobs import mixture_kl as mixture_kl
 from ._blobs import mixture_log_density as mixture_log_density
 from ._blobs import pose_blobs as pose_blobs
 from ._blobs import visual_hull as visual_hull
+from ._blobs import voxel_colours as voxel_colours
 from ._blobs import voxel_grid as voxel_grid
 from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of

@@ -231,3 +231,18 @@ register_likelihood(LikelihoodRecipe(
     "blobs, each particle's blobs scored by their relative entropy to those (004 eqs. 6-7); a tracker that can restart "
     "(VLMM-PF) restarts where its best particle's divergence exceeds lost_divergence (0: never; 004 sec. 6.1)", _blobs,
     {"power": 1.0, "voxel": 0.05, "iterations": 5, "lost_divergence": LOST_DIVERGENCE}))
+
+
+def _colour_blobs(inputs: SceneInputs, *, power: float, voxel: float, iterations: int, lost_divergence: float,
+                  colour_in_score: bool) -> AbstractLikelihood:
+    return make_blob_likelihood(inputs.body, inputs.rig, power=power, voxel=voxel, iterations=iterations,
+                                lost_divergence=lost_divergence if lost_divergence > 0 else None, colour=True,
+                                colour_in_score=colour_in_score, dtype=inputs.body.radii.dtype)
+
+
+register_likelihood(LikelihoodRecipe(
+    "colour-blobs", "paper 004's blobs over position and colour (004 sec. 6.1): the hull's voxels coloured by the views' "
+    "images, the person's blob colours taken at the start pose on the first frame, colour guiding the blob fit "
+    "(colour_in_score=true scores it as well, 004's 6-D blobs); needs the file's images",
+    _colour_blobs, {"power": 1.0, "voxel": 0.05, "iterations": 5, "lost_divergence": LOST_DIVERGENCE, "colour_in_score": False},
+    observes=("silhouettes", "images")))
