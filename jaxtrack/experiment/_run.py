@@ -161,7 +161,7 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     ik_key = jax.random.key(config.seed)
     observes = get_likelihood(config.likelihood).observes
     for seq, name in zip(test, test_names):
-        check_test_sequence(seq, name, observes)
+        check_test_sequence(seq, name, observes, likelihood=config.likelihood)
     check_frame_rates([*train, *validation, *test], [*train_names, *validation_names, *test_names])
     # The training and validation takes' bodies and poses: each its own skeleton (the file's, or
     # the one inverse kinematics fits to its joints).

@@ -96,10 +96,11 @@ def ground_truth_joints(sequence: Sequence, poses: np.ndarray, skeleton) -> np.n
 
 
 def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...] = ("silhouettes",), *,
-                        truth: bool = True) -> None:
+                        truth: bool = True, likelihood: str | None = None) -> None:
     """A test sequence needs the observations its likelihood reads (``observes``: silhouettes,
     keypoints, and edge and foreground maps, which are made from the silhouettes and images),
-    cameras and (with ``truth``) ground truth; raise ``ValueError`` if not."""
+    cameras and (with ``truth``) ground truth; raise ``ValueError`` if not, naming the
+    ``likelihood`` that reads them where given."""
     present = {"silhouettes": sequence.silhouettes is not None, "keypoints": sequence.keypoints2d is not None,
                "cameras": sequence.has_cameras, "images": sequence.images is not None}
     keys = {"silhouettes": "silhouettes", "keypoints": "keypoints2d", "cameras": "camera_K, camera_R, camera_t, image_size",
@@ -108,7 +109,8 @@ def check_test_sequence(sequence: Sequence, name: str, observes: tuple[str, ...]
     needed = list(dict.fromkeys([*needed, "cameras"]))
     missing = [what for what in needed if not present[what]]
     if missing:
-        raise ValueError(f"{name}: a test sequence needs {' and '.join(missing)}, which the file lacks (key"
+        who = "a test sequence" if likelihood is None else f"a test sequence tracked with the {likelihood} likelihood"
+        raise ValueError(f"{name}: {who} needs {' and '.join(missing)}, which the file lacks (key"
                          f"{'s' if len(missing) > 1 else ''} {'; '.join(keys[m] for m in missing)})")
     if truth and sequence.joints3d is None and sequence.pose is None:
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to be scored")
@@ -397,7 +399,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     check_key(key)
     say = say or (lambda *a, **k: None)
     recipe = get_likelihood(likelihood)
-    check_test_sequence(sequence, name, recipe.observes, truth=start == "truth")
+    check_test_sequence(sequence, name, recipe.observes, truth=start == "truth", likelihood=recipe.name)
     if calibrate and "silhouettes" not in recipe.observes:
         raise ConfigurationError(f"{name}: --calibrate fits the capsule radii to silhouettes; the {recipe.name} likelihood "
                                  "reads none")

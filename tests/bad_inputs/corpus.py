@@ -364,6 +364,8 @@ API_CASES: list[APICase] = [
             ("empty silhouette in view 0",)),
     APICase("a negative lost divergence for the blobs", lambda c: __import__("jaxtrack.likelihood").likelihood.make_blob_likelihood(
         c.body, c.rig, lost_divergence=-1.0), ValueError, ("lost_divergence must be positive or None", "got -1.0")),
+    APICase("the colour blobs on a file without images", lambda c: _jt().prepare_test(c.sequence, "walk", key=c.key,
+            likelihood="colour-blobs"), ValueError, ("tracked with the colour-blobs likelihood needs images", "(key images)")),
     APICase("restarts on dynamics that cannot restart", lambda c: _jt().filters.RecoveringSIR(_jt().fit_pose_random_walk(
         [np.asarray(c.sequence.pose)]), c.likelihood, 4, lost_below=-10.0), ValueError, ("PoseRandomWalk has none",)),
     APICase("prepare_test(frames=-3)", lambda c: _jt().prepare_test(c.sequence, "walk", key=c.key, frames=-3), ValueError,
