@@ -21,6 +21,7 @@ error on the sneak, the fade and the jog over ``--runs`` runs, budget ``--budget
 import argparse
 import json
 import os
+import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -106,11 +107,10 @@ def main() -> None:
             row |= {name: round(float(curves[:, part].mean()), 1) for name, part in segments.items()}
             row["all"] = round(float(curves.mean()), 1)
             row["sd_over_runs"] = round(float(curves.mean(axis=1).std()), 1)
-            rows.append(row)
             print(json.dumps(row), flush=True)
+            rows.append(row)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+        pathlib.Path(args.json).write_text(json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":
