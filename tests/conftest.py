@@ -22,6 +22,18 @@ else:
     jax.config.update("jax_compilation_cache_dir", None)
 
 
+def pytest_configure(config):
+    """The default suite (``-m 'not slow'``, the addopts) compiles at XLA's backend optimisation
+    level 0: its tests run tiny problems, most of their time is XLA compiling them, and level 0
+    compiles in about half the time (docs/testing.md). The slow suite, the notebooks, the
+    benchmarks and the library itself keep XLA's default, under which the filters run several
+    times faster. An ``XLA_FLAGS`` that already names a level is left alone. Set here, before JAX
+    starts its backend; the pytest-xdist workers inherit it."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if config.getoption("markexpr", "") == "not slow" and "xla_backend_optimization_level" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_backend_optimization_level=0".strip()
+
+
 def pytest_xdist_auto_num_workers(config):
     """``-n auto``: one worker per core this process may use, at most 4 (each holds 2-4 GiB of
     compiled programs)."""
