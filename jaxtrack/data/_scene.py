@@ -168,7 +168,10 @@ def _noisy_frame(key, body, rig, pose, joints, noise: dict, ankle_index, mask=No
     return jax.vmap(corrupt)(keys, clean)
 
 
-@eqx.filter_jit
+# Compiled at XLA's backend optimisation level 0: a scene is rendered once, where compiling it at
+# the default level costs more than it saves, and the silhouettes are the same bit for bit
+# (docs/testing.md, "Cold start").
+@eqx.filter_jit(compiler_options={"xla_backend_optimization_level": 0})
 def _render_chunk(key, frame_ids, body, rig, poses, joints, noise, ankle_index, masks=None):
     """Noisy silhouettes (frames, views, H, W) of a chunk of frames; one compile per shape."""
     keys = jax.vmap(lambda f: jax.random.fold_in(key, f))(frame_ids)
