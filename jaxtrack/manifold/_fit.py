@@ -2,13 +2,13 @@
 compiled ``lax.while_loop``: no host round-trip per step. Two optimisers: ``"lbfgs"``
 (default, ``_lbfgs``: one objective evaluation per loop iteration, the line search a state of
 the loop) and ``"optax"`` (optax's L-BFGS with its zoom line search, the fit before issue #15's
-compile-time work). Progress is shown by a host callback every ``report_every`` steps, and the
-convergence test and the guard against non-finite values run inside the loop."""
+compile-time work). The convergence test and the guard against non-finite values run inside
+the loop; with a progress bar the loop runs in pieces of ``report_every`` steps, the same run as
+one piece, so that no host callback keeps the program out of JAX's persistent cache."""
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 from typing import NamedTuple
 
 import equinox as eqx
@@ -19,7 +19,7 @@ import optax
 import threadpoolctl
 from jax.flatten_util import ravel_pytree
 
-from ._lbfgs import LBFGS_MEMORY, lbfgs_minimise
+from ._lbfgs import LBFGS_MEMORY, LBFGSState, lbfgs_advance, lbfgs_init
 
 OPTIMISERS = ("lbfgs", "optax")
 # The one default of every fit (``fit_model``, ``tracking.fit_manifold``, ``jaxtrack fit``,
@@ -46,19 +46,10 @@ class FitInfo(NamedTuple):
 
 
 _OPTIMISER = optax.lbfgs()
-_PROGRESS: dict[int, object] = {}  # fit id -> progress bar, for the host callback
-_FIT_IDS = itertools.count()
 
 
 def _loss(params, static):
     return -eqx.combine(params, static).objective()
-
-
-def _report(fit_id, step, objective):
-    bar = _PROGRESS.get(int(fit_id))
-    if bar is not None:
-        bar.update(int(step) - bar.n)
-        bar.set_postfix(objective=f"{float(objective):.6g}")
 
 
 def _all_finite(tree) -> jax.Array:
@@ -78,10 +69,27 @@ class _Carry(NamedTuple):
 
 
 @eqx.filter_jit
-def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id, capacity: int, progress: bool):
-    """The whole L-BFGS run in one ``lax.while_loop``. ``max_steps``, ``tolerance`` and
-    ``check_every`` are traced, so fits of one model class and shapes share one compilation
-    whatever their step counts (``capacity``, the trace buffer, is the next power of two).
+def _optax_start(params, static, capacity: int) -> _Carry:
+    """optax's L-BFGS before its first step: the loss and gradient at the start in its state."""
+    # The loss and gradient at the start go into the optimiser's state, where its line search
+    # leaves them after every step: the loop reads them from there, so the objective's code
+    # appears twice in the compiled programs (here and in the line search), not four times (a
+    # forward pass for the start, ``value_and_grad_from_state``'s recompute branch, the line search).
+    initial, initial_grad = jax.value_and_grad(_loss)(params, static)
+    dtype = jnp.result_type(initial)
+    state = optax.tree_utils.tree_set(_OPTIMISER.init(params), value=initial, grad=initial_grad)
+    return _Carry(
+        params=params, state=state, step=jnp.asarray(0), evaluations=jnp.asarray(1),  # ``initial`` (with its gradient)
+        value=initial, checkpoint=initial, done=~jnp.isfinite(initial), trace=jnp.full((capacity,), jnp.nan, dtype),
+    )
+
+
+@eqx.filter_jit
+def _optax_advance(start: _Carry, static, max_steps, tolerance, target, check_every) -> _Carry:
+    """optax's L-BFGS from ``start`` in one ``lax.while_loop`` until ``max_steps`` steps in all.
+    ``max_steps``, ``tolerance`` and ``check_every`` are traced, so fits of one model class and
+    shapes share one compilation whatever their step counts (the trace buffer's length is the
+    next power of two of the steps asked for).
 
     Stops after ``max_steps`` steps; when the loss improves by less than ``tolerance``
     (relative) over ``check_every`` steps; when it reaches ``target`` (a loss); or before a
@@ -89,14 +97,6 @@ def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id,
 
     def loss(p):
         return _loss(p, static)
-
-    # The loss and gradient at the start go into the optimiser's state, where its line search
-    # leaves them after every step: the body reads them from there, so the objective's code
-    # appears twice in the program (here and in the line search), not four times (a forward
-    # pass for the start, ``value_and_grad_from_state``'s recompute branch, the line search).
-    initial, initial_grad = jax.value_and_grad(loss)(params)
-    dtype = jnp.result_type(initial)
-    initial_state = optax.tree_utils.tree_set(_OPTIMISER.init(params), value=initial, grad=initial_grad)
 
     def cond(c: _Carry):
         return (c.step < max_steps) & ~c.done
@@ -112,8 +112,6 @@ def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id,
         check = finite & (step % check_every == 0)
         stalled = check & (tolerance > 0) & (jnp.abs(c.checkpoint - new_value) <= tolerance * jnp.maximum(1.0, jnp.abs(new_value)))
         keep = lambda new, old: jax.tree.map(lambda a, b: jnp.where(finite, a, b), new, old)  # noqa: E731
-        if progress:
-            jax.lax.cond(check | (step == max_steps), lambda: jax.debug.callback(_report, fit_id, step, -new_value), lambda: None)
         return _Carry(
             params=keep(params, c.params),
             state=keep(state, c.state),
@@ -125,22 +123,24 @@ def _fit_loop(params, static, max_steps, tolerance, target, check_every, fit_id,
             trace=c.trace.at[c.step].set(jnp.where(finite, new_value, jnp.nan)),
         )
 
-    start = _Carry(
-        params=params, state=initial_state, step=jnp.asarray(0), evaluations=jnp.asarray(1),  # ``initial`` (with its gradient)
-        value=initial, checkpoint=initial, done=~jnp.isfinite(initial), trace=jnp.full((capacity,), jnp.nan, dtype),
-    )
-    end = jax.lax.while_loop(cond, body, start)
-    return end.params, end.value, end.step, end.evaluations, end.trace
+    return jax.lax.while_loop(cond, body, start)
 
 
 @eqx.filter_jit
-def _lbfgs_loop(params, static, max_steps, tolerance, target, check_every, fit_id, capacity: int, progress: bool, memory: int):
-    """``lbfgs_minimise`` on the flattened trainable leaves; returns what ``_fit_loop`` does."""
-    x0, unravel = ravel_pytree(params)
-    report = (lambda step, loss: jax.debug.callback(_report, fit_id, step, -loss)) if progress else None
-    end = lbfgs_minimise(jax.value_and_grad(lambda x: _loss(unravel(x), static)), x0, max_steps=max_steps, tolerance=tolerance,
-                         target=target, check_every=check_every, capacity=capacity, memory=memory, report=report)
-    return unravel(end.x), end.loss, end.steps, end.evaluations, end.trace
+def _lbfgs_start(params, capacity: int, memory: int) -> LBFGSState:
+    """``lbfgs_init`` on the flattened trainable leaves."""
+    x0, _ = ravel_pytree(params)
+    return lbfgs_init(x0, capacity=capacity, memory=memory)
+
+
+@eqx.filter_jit
+def _lbfgs_advance(state: LBFGSState, params, static, max_steps, tolerance, target, check_every):
+    """``lbfgs_advance`` on the flattened trainable leaves (``params`` gives their layout);
+    returns the new state and its point as parameters."""
+    _, unravel = ravel_pytree(params)
+    state = lbfgs_advance(jax.value_and_grad(lambda x: _loss(unravel(x), static)), state, max_steps=max_steps,
+                          tolerance=tolerance, target=target, check_every=check_every)
+    return state, unravel(state.x)
 
 
 def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: float | None = None, progress: bool = False,
@@ -189,28 +189,40 @@ def fit_model(model, *, max_steps: int = 500, tolerance: float = 1e-7, target: f
     if isinstance(memory, bool) or not isinstance(memory, int) or memory < 1:
         raise ValueError(f"fit_model: memory must be a positive integer, got {memory!r}")
     params, static = eqx.partition(model, model.trainable())
-    fit_id = next(_FIT_IDS)
+    capacity = 1 << (max_steps - 1).bit_length()
+    # With a progress bar the loop runs in pieces of ``report_every`` steps, the bar moved between
+    # them; the same run as one piece (``lbfgs_advance``). Not a host callback inside the loop: JAX
+    # never keeps a program with one in its persistent cache, so every call compiled the fit again.
+    stops = [*range(report_every, max_steps, report_every), max_steps] if progress else [max_steps]
+    checks = (jnp.asarray(tolerance, float), jnp.asarray(-np.inf if target is None else -target, float), jnp.asarray(report_every))
+    bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        _PROGRESS[fit_id] = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
-    capacity = 1 << (max_steps - 1).bit_length()
+        bar = tqdm(total=max_steps, desc=f"fitting {type(model).__name__}", unit="step")
     limits = contextlib.nullcontext() if blas_threads is None else threadpoolctl.threadpool_limits(blas_threads, user_api="blas")
     try:
         with limits:
-            arguments = (params, static, jnp.asarray(max_steps), jnp.asarray(tolerance, float),
-                         jnp.asarray(-np.inf if target is None else -target, float), jnp.asarray(report_every),
-                         jnp.asarray(fit_id), capacity, progress)
             if optimiser == "lbfgs":
-                params, value, steps, evaluations, trace = _lbfgs_loop(*arguments, memory)
+                state, trained = _lbfgs_start(params, capacity, memory), params
             else:
-                params, value, steps, evaluations, trace = _fit_loop(*arguments)
-            steps = int(steps)  # waits for the fit, inside the limits
-            jax.effects_barrier()
+                state = _optax_start(params, static, capacity)
+            for stop in stops:
+                if optimiser == "lbfgs":
+                    state, trained = _lbfgs_advance(state, params, static, jnp.asarray(stop), *checks)
+                    loss, steps = state.loss, int(state.steps)  # waits for the piece, inside the limits
+                else:
+                    state = _optax_advance(state, static, jnp.asarray(stop), *checks)
+                    trained, loss, steps = state.params, state.value, int(state.step)
+                if bar is not None:
+                    bar.update(steps - bar.n)
+                    bar.set_postfix(objective=f"{-float(loss):.6g}")
+                if bool(state.done) or steps < stop:
+                    break
     finally:
-        bar = _PROGRESS.pop(fit_id, None)
         if bar is not None:
             bar.close()
+    params, value, evaluations, trace = trained, loss, state.evaluations, state.trace
     fitted = eqx.combine(params, static)
     objective = -float(value)
     trace = -np.asarray(trace)[:steps]

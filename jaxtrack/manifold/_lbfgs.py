@@ -48,7 +48,9 @@ class LBFGSResult(NamedTuple):
     trace: Float[Array, " capacity"]
 
 
-class _Carry(NamedTuple):
+class LBFGSState(NamedTuple):
+    """The loop's whole state, carried from one ``lbfgs_advance`` to the next."""
+
     x: Array  # last accepted point
     loss: Array
     grad: Array
@@ -70,6 +72,10 @@ class _Carry(NamedTuple):
     checkpoint: Array  # the loss at the last convergence check
     done: Array
     trace: Array
+
+    def result(self) -> LBFGSResult:
+        """The run's outcome so far."""
+        return LBFGSResult(self.x, self.loss, self.steps, self.evaluations, self.trace)
 
 
 def two_loop_direction(grad, s, y, rho, filled, head):
@@ -96,32 +102,51 @@ def two_loop_direction(grad, s, y, rho, filled, head):
     return -r
 
 
-def lbfgs_minimise(
-    value_and_grad: Callable[[Array], tuple[Array, Array]], x0: Float[Array, " n"], *, max_steps, tolerance, target,
-    check_every, capacity: int, memory: int = LBFGS_MEMORY, report: Callable | None = None,
-) -> LBFGSResult:
-    """Minimise a loss from ``x0`` (a flat vector); traceable, to be called under jit.
+def lbfgs_init(x0: Float[Array, " n"], *, capacity: int, memory: int = LBFGS_MEMORY) -> LBFGSState:
+    """The state before the first evaluation: ``lbfgs_advance`` evaluates ``x0`` first.
+
+    Args:
+        x0: (n,) the start point.
+        capacity: length of the trace buffer (static, at least the steps the run will take).
+        memory: curvature pairs kept.
+    """
+    n, dtype = x0.shape[0], x0.dtype
+    zeros = jnp.zeros(n, dtype)
+    return LBFGSState(
+        x=x0, loss=jnp.asarray(jnp.inf, dtype), grad=zeros, direction=zeros, alpha=jnp.asarray(0.0, dtype),
+        low=jnp.asarray(0.0, dtype), high=jnp.asarray(jnp.inf, dtype), low_loss=jnp.asarray(jnp.inf, dtype), low_grad=zeros,
+        s=jnp.zeros((memory, n), dtype), y=jnp.zeros((memory, n), dtype), rho=jnp.zeros(memory, dtype),
+        filled=jnp.asarray(0), head=jnp.asarray(0), started=jnp.asarray(False), steps=jnp.asarray(0),
+        evaluations=jnp.asarray(0), trials=jnp.asarray(0), checkpoint=jnp.asarray(jnp.inf, dtype),
+        done=jnp.asarray(False), trace=jnp.full((capacity,), jnp.nan, dtype),
+    )
+
+
+def lbfgs_advance(
+    value_and_grad: Callable[[Array], tuple[Array, Array]], state: LBFGSState, *, max_steps, tolerance, target, check_every,
+    report: Callable | None = None,
+) -> LBFGSState:
+    """Run the loop from ``state`` until ``max_steps`` steps in all are accepted or the run is
+    done (converged, stalled, or not finite at the start); traceable, to be called under jit.
+    A run advanced to 50 steps and then to 100 is the run advanced to 100 at once: the loop
+    stops between two iterations and carries everything on in ``state``.
 
     Args:
         value_and_grad: ``x -> (loss, grad)``.
-        max_steps: accepted steps at most (traced).
+        state: from ``lbfgs_init`` or an earlier ``lbfgs_advance``.
+        max_steps: accepted steps in all at which to stop (traced).
         tolerance: stop when ``check_every`` accepted steps improve the loss by less than this
             (relative); 0 never stops for it (traced).
         target: stop once the loss is at or below this (traced; -inf: never).
         check_every: accepted steps between convergence checks and reports (traced).
-        capacity: length of the trace buffer (static, >= max_steps).
         report: ``(steps, loss) -> None`` called (inside jit) at every check and at the end.
-
-    Returns:
-        an ``LBFGSResult``. A trial whose loss or gradient is not finite is never accepted (the
-        step shrinks); a non-finite loss at ``x0`` ends the run at once.
     """
-    n, dtype = x0.shape[0], x0.dtype
+    memory, dtype = state.s.shape[0], state.x.dtype
 
-    def cond(c: _Carry):
+    def cond(c: LBFGSState):
         return (c.steps < max_steps) & ~c.done
 
-    def body(c: _Carry):
+    def body(c: LBFGSState):
         trial = c.x + c.alpha * c.direction
         loss, grad = value_and_grad(trial)
         finite = jnp.isfinite(loss) & jnp.all(jnp.isfinite(grad))
@@ -172,7 +197,7 @@ def lbfgs_minimise(
         done = stalled | (trials > MAX_BACKTRACKS) | (accepted & (new_loss <= target)) | (~c.started & ~finite)
         if report is not None:
             jax.lax.cond(check | (accepted & (done | (steps == max_steps))), lambda: report(steps, new_loss), lambda: None)
-        return _Carry(
+        return LBFGSState(
             x=x, loss=new_loss, grad=new_grad, direction=jnp.where(moved, direction, c.direction),
             alpha=jnp.where(moved, fresh, searched).astype(dtype), low=jnp.where(moved, 0.0, low).astype(dtype),
             high=jnp.where(moved, jnp.inf, high).astype(dtype), low_loss=jnp.where(short, loss, c.low_loss),
@@ -182,14 +207,20 @@ def lbfgs_minimise(
             trace=c.trace.at[c.steps].set(jnp.where(accepted, new_loss, c.trace[c.steps])),
         )
 
-    zeros = jnp.zeros(n, dtype)
-    start = _Carry(
-        x=x0, loss=jnp.asarray(jnp.inf, dtype), grad=zeros, direction=zeros, alpha=jnp.asarray(0.0, dtype),
-        low=jnp.asarray(0.0, dtype), high=jnp.asarray(jnp.inf, dtype), low_loss=jnp.asarray(jnp.inf, dtype), low_grad=zeros,
-        s=jnp.zeros((memory, n), dtype), y=jnp.zeros((memory, n), dtype), rho=jnp.zeros(memory, dtype),
-        filled=jnp.asarray(0), head=jnp.asarray(0), started=jnp.asarray(False), steps=jnp.asarray(0),
-        evaluations=jnp.asarray(0), trials=jnp.asarray(0), checkpoint=jnp.asarray(jnp.inf, dtype),
-        done=jnp.asarray(False), trace=jnp.full((capacity,), jnp.nan, dtype),
-    )
-    end = jax.lax.while_loop(cond, body, start)
-    return LBFGSResult(end.x, end.loss, end.steps, end.evaluations, end.trace)
+    return jax.lax.while_loop(cond, body, state)
+
+
+def lbfgs_minimise(
+    value_and_grad: Callable[[Array], tuple[Array, Array]], x0: Float[Array, " n"], *, max_steps, tolerance, target,
+    check_every, capacity: int, memory: int = LBFGS_MEMORY, report: Callable | None = None,
+) -> LBFGSResult:
+    """Minimise a loss from ``x0`` (a flat vector); traceable, to be called under jit:
+    ``lbfgs_init`` then ``lbfgs_advance`` to ``max_steps`` (their arguments).
+
+    Returns:
+        an ``LBFGSResult``. A trial whose loss or gradient is not finite is never accepted (the
+        step shrinks); a non-finite loss at ``x0`` ends the run at once.
+    """
+    end = lbfgs_advance(value_and_grad, lbfgs_init(x0, capacity=capacity, memory=memory), max_steps=max_steps,
+                        tolerance=tolerance, target=target, check_every=check_every, report=report)
+    return end.result()
