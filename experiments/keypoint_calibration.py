@@ -23,6 +23,7 @@ A study for docs/body.md, not a benchmark.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -45,6 +46,7 @@ from jaxtrack.likelihood import (
     calibrate_body,
     make_ground_prior,
     make_keypoint_likelihood,
+    with_body,
 )
 from jaxtrack.tracking import limb_lengths_of, prepare_test
 
@@ -67,6 +69,9 @@ def main():
     parser.add_argument("--noise", type=float, default=1.0, help="keypoint noise, pixels (sd); the likelihood's sigma is the same")
     parser.add_argument("--dropped", type=float, default=0.1, help="fraction of keypoints missing")
     parser.add_argument("--renderer", choices=("capsules", "solid", "solid-joints"), default="capsules", help="what draws the test scene")
+    parser.add_argument("--variants", nargs="+", choices=("silhouettes", "keypoints", "both"), default=("silhouettes", "keypoints", "both"))
+    parser.add_argument("--torso-top", type=float, default=1.0,
+                        help="the tracker's torso capsule ends at this fraction of the pelvis-thorax bone (default 1: at the thorax)")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     views, width, height = (int(v) for v in args.setting.split("x"))
@@ -79,6 +84,11 @@ def main():
     test = scene_seq.replace(**dict.fromkeys(("pose", "pose_layout", "skeleton_offsets", "capsule_radii")))
     true_lengths = limb_lengths_of(motion.body)
     scene = prepare_test(test, "walk", key=key, body="default", pixel_samples=None)
+    if args.torso_top != 1.0:  # a torso whose dome ends below the thorax, as a person's shoulders do
+        spans = list(scene.body.capsule_span)
+        spans[scene.body.capsule_names.index("torso")] = (0.0, args.torso_top)
+        torso = dataclasses.replace(scene.body, capsule_span=tuple(spans))
+        scene = dataclasses.replace(scene, likelihood=with_body(scene.likelihood, torso))
     true_joints = np.asarray(forward_kinematics(motion.body.skeleton, jnp.asarray(motion.pose[:FRAMES], jnp.float32)))
     keypoints = detections(jax.random.fold_in(key, 700), true_joints, scene.likelihood.rig, args.noise, args.dropped)
     silhouettes = np.asarray(scene.observations[:FRAMES])
@@ -92,7 +102,8 @@ def main():
     }
     start = np.repeat(np.asarray(scene.truth_poses)[:1], FRAMES, axis=0)
     rows = []
-    for label, (likelihood, observations) in variants.items():
+    for label in args.variants:
+        likelihood, observations = variants[label]
         began = time.perf_counter()
         try:
             fitted, poses, _ = calibrate_body(likelihood, start, observations)
@@ -111,7 +122,8 @@ def main():
               + f"; worst {rows[-1]['max_abs_mm']:.0f} mm; frame 0 {start_error:.1f} mm", flush=True)
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"setting": args.setting, "renderer": args.renderer, "noise_px": args.noise, "dropped": args.dropped,
+            json.dump({"setting": args.setting, "renderer": args.renderer, "torso_top": args.torso_top,
+                       "noise_px": args.noise, "dropped": args.dropped,
                        "rows": rows}, f, indent=1)
 
 

@@ -18,6 +18,7 @@ from jaxtrack.image import (
     edge_proximity,
     erode,
     gaussian_blur,
+    hysteresis,
     opening,
     pyramid,
     resize,
@@ -106,6 +107,21 @@ def test_morphology_is_scipys(radius, shape):
     assert bool(closing(hole, 1)[7, 7]) and bool(jnp.all(closing(hole, 1)))  # the border is not eroded
     with pytest.raises(ValueError, match="radius must be a whole number"):
         dilate(mask, -1)
+
+
+def test_hysteresis_keeps_the_weak_components_that_hold_a_strong_pixel():
+    """Against scipy.ndimage.label with 8-connectivity, on batched random masks whose weak
+    components snake over many pixels (the growth runs for dozens of steps, past several tests of
+    its fixed point), and the image border connects nothing."""
+    rng = np.random.default_rng(0)
+    weak = rng.random((3, 48, 64)) < 0.55
+    strong = weak & (rng.random(weak.shape) < 0.004)
+    got = np.asarray(hysteresis(strong, weak))
+    for b in range(weak.shape[0]):
+        labels, _ = ndimage.label(weak[b], structure=np.ones((3, 3)))
+        keep = np.unique(labels[strong[b]])
+        np.testing.assert_array_equal(got[b], np.isin(labels, keep[keep > 0]))
+    assert got.sum() > 0 and not np.array_equal(got, weak)
 
 
 def test_canny_finds_a_squares_outline_one_pixel_thin():

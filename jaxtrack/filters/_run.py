@@ -120,7 +120,8 @@ def run_filter(
         state, infos = _scan(filter_, state, keys[frames], jax.tree.map(lambda x, f=frames: x[f], observations), sharding)
         pieces.append(infos)
         if on_chunk is not None:
-            so_far = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: jnp.concatenate(xs), *pieces)
+            # joined on the host: a device concatenation would compile anew at every chunk's length
+            so_far = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *pieces)
             on_chunk(frames.stop, so_far)
     infos = pieces[0] if len(pieces) == 1 else jax.tree.map(lambda *xs: jnp.concatenate(xs), *pieces)
     return state, infos

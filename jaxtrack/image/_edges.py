@@ -55,14 +55,24 @@ def hysteresis(strong, weak) -> Bool[Array, "... H W"]:
     return _hysteresis(jnp.asarray(strong, bool), jnp.asarray(weak, bool))
 
 
+GROWTHS_PER_CHECK = 4  # 8-neighbour growths between two tests of the fixed point
+
+
+def _grow(mask):
+    """Each pixel ORed with its 8 neighbours (outside the image: False), as shifted slices: XLA
+    fuses them into one pass, where ``lax.reduce_window`` on booleans took 5 times as long."""
+    padded = jnp.pad(mask, [(0, 0)] * (mask.ndim - 2) + [(1, 1), (1, 1)])
+    rows = padded[..., :, :-2] | padded[..., :, 1:-1] | padded[..., :, 2:]
+    return rows[..., :-2, :] | rows[..., 1:-1, :] | rows[..., 2:, :]
+
+
 @jax.jit
 def _hysteresis(strong, weak):
-    window = (1,) * (strong.ndim - 2) + (3, 3)
-    pad = [(0, 0)] * (strong.ndim - 2) + [(1, 1), (1, 1)]
-
     def grow(state):
         edges, _ = state
-        grown = jax.lax.reduce_window(edges, False, jax.lax.bitwise_or, window, (1,) * edges.ndim, pad) & weak
+        grown = edges
+        for _ in range(GROWTHS_PER_CHECK):  # growing past the fixed point leaves it where it is
+            grown = _grow(grown) & weak
         return grown, jnp.any(grown != edges)
 
     edges, _ = jax.lax.while_loop(lambda state: state[1], grow, (strong & weak, jnp.array(True)))

@@ -614,13 +614,20 @@ def track(tracker, key: PRNGKeyArray, scene: TestScene, *, chunk_frames: int | N
         ``(poses (T, D), joints (T, J, 3), infos)``: float64 estimates and the per-frame
         ``StepInfo``.
     """
-    def estimates(info):
-        poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
-        return poses, np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(poses, TRACKING_DTYPE)), np.float64)
+    def joints_of(poses):
+        return np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(poses, TRACKING_DTYPE)), np.float64)
 
-    report = None if on_chunk is None else (lambda frames_done, info: on_chunk(*estimates(info)))
-    _, info = run_filter(tracker, key, scene.initial_pose, scene.observations, chunk_frames=chunk_frames, on_chunk=report)
-    return *estimates(info), info
+    joints_so_far = []
+
+    def report(frames_done, info):  # the joints of the new chunk only: one shape, compiled once
+        poses = np.asarray(info.estimate, np.float64)
+        joints_so_far.append(joints_of(poses[sum(len(j) for j in joints_so_far):]))
+        on_chunk(poses, np.concatenate(joints_so_far))
+
+    _, info = run_filter(tracker, key, scene.initial_pose, scene.observations, chunk_frames=chunk_frames,
+                         on_chunk=None if on_chunk is None else report)
+    poses = np.asarray(jax.block_until_ready(info.estimate), np.float64)
+    return poses, joints_of(poses), info
 
 
 def track_runs(tracker, keys: Key[Array, " runs"], scene: TestScene):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
+import jax
 import numpy as np
 
 from ..camera import CameraRig
@@ -34,7 +35,8 @@ class VideoInput:
             frames read, T of them.
         total_frames: the videos' length.
         stopped: why reading stopped before the end (None: it did not): the frame and camera.
-        seconds: time spent decoding and in background subtraction.
+        seconds: time spent decoding ("decode"), fitting the background model ("background
+            model", once per video) and subtracting it from the frames ("background").
     """
 
     sequence: Sequence
@@ -75,7 +77,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     if len(videos) != rig.num_views:
         raise ValueError(f"the calibration has {rig.num_views} cameras ({', '.join(rig.names)}): give one video per camera "
                          f"in that order (got {len(videos)})")
-    seconds = {"decode": 0.0, "background": 0.0}
+    seconds = {"decode": 0.0, "background model": 0.0, "background": 0.0}
     if background is not None:
         if len(background) != rig.num_views:
             raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
@@ -91,8 +93,8 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         seconds["decode"] += time.perf_counter() - start
         source = f"the median of {pictures.shape[0]} frames spread over the videos"
     start = time.perf_counter()
-    model = fit_background(pictures)
-    seconds["background"] += time.perf_counter() - start
+    model = jax.block_until_ready(fit_background(pictures))
+    seconds["background model"] += time.perf_counter() - start
     say(f"background model: {source}")
     masks, images, stopped = [], [], None
     with MultiViewVideo(videos, names=rig.names) as video:
