@@ -105,7 +105,7 @@ def subtract_background(model: BackgroundModel, frames, *, low: float = 4.0, hig
     lo, hi = shadow_ratio
     if not 0 < lo < hi <= 1:
         raise ValueError(f"shadow_ratio must be (min, max) with 0 < min < max <= 1, got {shadow_ratio}")
-    return _subtract(model, to_float(frames), float(low), float(high), (float(lo), float(hi)), float(shadow_chroma),
+    return _subtract(model, frames, float(low), float(high), (float(lo), float(hi)), float(shadow_chroma),
                      int(open_radius), int(close_radius), bool(lighting))
 
 
@@ -119,6 +119,7 @@ def lighting_gain(model: BackgroundModel, frames) -> Float[Array, ...]:
 
 @eqx.filter_jit
 def _subtract(model, frames, low, high, shadow_ratio, shadow_chroma, open_radius: int, close_radius: int, lighting: bool):
+    frames = to_float(frames)  # inside the program: XLA reads the uint8 frames once, fused with what follows
     if lighting:
         frames = frames / lighting_gain(model, frames)[..., None, None, None]
     z = jnp.linalg.norm(frames - model.colour, axis=-1) / model.noise
