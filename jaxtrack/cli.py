@@ -448,8 +448,9 @@ def _video_test(args):
     observes = get_likelihood(args.likelihood).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
                                keep_images=bool({"edges", "foreground", "images"} & set(observes)), say=print)
-    print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['background']:.1f} s "
-          f"(its model {read.seconds['background model']:.1f} s, decoding {read.seconds['decode']:.1f} s)")
+    print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['silhouettes']:.1f} s, "
+          f"decoding side by side (its model {read.seconds['background model']:.1f} s, opening and closing the videos "
+          f"{read.seconds['open and close']:.1f} s)")
     if read.stopped:
         print(f"warning: the videos' frames from {read.sequence.num_frames} on are not tracked: {read.stopped}", file=sys.stderr)
     return read.sequence, read.stopped

@@ -19,6 +19,7 @@ from jaxtrack.image import (
     erode,
     gaussian_blur,
     hysteresis,
+    median,
     opening,
     pyramid,
     resize,
@@ -91,17 +92,18 @@ def _disk(radius):
     return x**2 + y**2 <= radius**2
 
 
-@pytest.mark.parametrize("radius", [1, 2, 5])  # disks of 1 and 2 by shifted copies, of 5 through the distance transform
+@pytest.mark.parametrize("radius", [1, 2, 3, 5])  # disks up to 3 by shifted copies, of 5 through the distance transform
 @pytest.mark.parametrize("shape", ["disk", "square"])
 def test_morphology_is_scipys(radius, shape):
-    mask = np.random.default_rng(radius).random((2, 25, 30)) < 0.3
-    mask[:, 8:18, 10:22] = True
     structure = _disk(radius) if shape == "disk" else np.ones((2 * radius + 1,) * 2, bool)
-    for i in range(2):
-        np.testing.assert_array_equal(np.asarray(dilate(mask, radius, shape))[i], ndimage.binary_dilation(mask[i], structure))
-        np.testing.assert_array_equal(np.asarray(erode(mask, radius, shape))[i], ndimage.binary_erosion(mask[i], structure))
-        expected_opening = ndimage.binary_dilation(ndimage.binary_erosion(mask[i], structure), structure)
-        np.testing.assert_array_equal(np.asarray(opening(mask, radius, shape))[i], expected_opening)
+    for width in (30, 70):  # one word a row; three, across the words' boundaries (the disks are packed)
+        mask = np.random.default_rng(radius).random((2, 25, width)) < 0.3
+        mask[:, 8:18, 10:22] = True
+        for i in range(2):
+            np.testing.assert_array_equal(np.asarray(dilate(mask, radius, shape))[i], ndimage.binary_dilation(mask[i], structure))
+            np.testing.assert_array_equal(np.asarray(erode(mask, radius, shape))[i], ndimage.binary_erosion(mask[i], structure))
+            expected_opening = ndimage.binary_dilation(ndimage.binary_erosion(mask[i], structure), structure)
+            np.testing.assert_array_equal(np.asarray(opening(mask, radius, shape))[i], expected_opening)
     hole = np.ones((15, 15), bool)
     hole[7, 7] = False
     assert bool(closing(hole, 1)[7, 7]) and bool(jnp.all(closing(hole, 1)))  # the border is not eroded
@@ -114,14 +116,36 @@ def test_hysteresis_keeps_the_weak_components_that_hold_a_strong_pixel():
     components snake over many pixels (the growth runs for dozens of steps, past several tests of
     its fixed point), and the image border connects nothing."""
     rng = np.random.default_rng(0)
-    weak = rng.random((3, 48, 64)) < 0.55
-    strong = weak & (rng.random(weak.shape) < 0.004)
-    got = np.asarray(hysteresis(strong, weak))
-    for b in range(weak.shape[0]):
-        labels, _ = ndimage.label(weak[b], structure=np.ones((3, 3)))
-        keep = np.unique(labels[strong[b]])
-        np.testing.assert_array_equal(got[b], np.isin(labels, keep[keep > 0]))
-    assert got.sum() > 0 and not np.array_equal(got, weak)
+    for shape in ((3, 48, 64), (2, 37, 77)):  # two words a row; three, the last one part padding
+        weak = rng.random(shape) < 0.55
+        strong = weak & (rng.random(weak.shape) < 0.004)
+        got = np.asarray(hysteresis(strong, weak))
+        for b in range(weak.shape[0]):
+            labels, _ = ndimage.label(weak[b], structure=np.ones((3, 3)))
+            keep = np.unique(labels[strong[b]])
+            np.testing.assert_array_equal(got[b], np.isin(labels, keep[keep > 0]))
+        assert got.sum() > 0 and not np.array_equal(got, weak)
+
+
+def test_median_by_selection_is_jnps():
+    """The selection median equals jnp.median's value on every row: odd and even counts, ties,
+    negative values and zeros of both signs, float32 and float64, any axis."""
+    rng = np.random.default_rng(1)
+    for dtype in (np.float32, np.float64):
+        for n in (1, 2, 5, 8, 4800):
+            x = rng.normal(size=(6, n)).astype(dtype)
+            x[0] = np.round(x[0])  # ties
+            x[1] = 0.0
+            x[2, : n // 2] = -0.0
+            x[3] = np.abs(x[3]) * 1e-30  # tiny positive values
+            x[4, ::2] = x[4, 0]
+            got = np.asarray(jax.jit(median)(x))
+            assert got.dtype == dtype
+            np.testing.assert_array_equal(got, np.median(x, axis=-1).astype(dtype))
+    frames = rng.random((31, 2, 5, 7, 3)).astype(np.float32)
+    np.testing.assert_array_equal(np.asarray(median(frames, axis=0)), np.median(frames, axis=0))
+    with pytest.raises(ValueError, match="float32 or float64"):
+        median(np.arange(4))
 
 
 def test_canny_finds_a_squares_outline_one_pixel_thin():

@@ -1,7 +1,8 @@
 """Image operations in JAX on (..., H, W) arrays (any leading axes: views, frames), jittable and
 differentiable where the maths is: the filters (Gaussian blur, Sobel), Canny edges and 001's
 edge-proximity map, the exact Euclidean distance transform, binary morphology, resizing and
-pyramids, colour conversions, and silhouettes resampled to the resolution a tracker runs at.
+pyramids, colour conversions, a median by selection (XLA's CPU sort is slow), and silhouettes
+resampled to the resolution a tracker runs at.
 
 Written here rather than taken from dm-pix, which has a Gaussian blur and colour conversions but
 no Sobel, edges, distance transform or morphology (docs/libraries.md)."""
@@ -26,6 +27,7 @@ from ._filters import gaussian_blur as gaussian_blur
 from ._filters import gaussian_kernel as gaussian_kernel
 from ._filters import gradient_magnitude as gradient_magnitude
 from ._filters import sobel as sobel
+from ._median import median as median
 from ._morphology import closing as closing
 from ._morphology import dilate as dilate
 from ._morphology import erode as erode

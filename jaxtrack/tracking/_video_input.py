@@ -17,6 +17,7 @@ import dataclasses
 import time
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..camera import CameraRig
@@ -36,13 +37,29 @@ class VideoInput:
         total_frames: the videos' length.
         stopped: why reading stopped before the end (None: it did not): the frame and camera.
         seconds: time spent decoding ("decode"), fitting the background model ("background
-            model", once per video) and subtracting it from the frames ("background").
+            model", once per video) and on the subtraction ("background": dispatching it and
+            waiting for its masks; it runs while the next chunk is decoded, so the two add up to
+            the wall time, not to each stage's cost alone), "silhouettes", the wall time from the
+            first chunk's decoding to the last chunk's masks, and "open and close", the videos'
+            (once per video: ffmpeg counting each video's frames, starting and stopping).
     """
 
     sequence: Sequence
     total_frames: int
     stopped: str | None
     seconds: dict
+
+
+@jax.jit
+def _silhouettes(model, block):
+    """(C, t, H, W) bool masks of a (C, t, H, W, 3) uint8 chunk and their (C, t) areas in
+    pixels. A ``jax.jit`` of its own: ``eqx.filter_jit`` (under ``subtract_background``) waits
+    for its result before returning, and this call must return at once, the masks computed
+    while the next chunk decodes."""
+    # frames first (the model broadcast over them): a model with a frame axis of 1 against the
+    # (C, t) chunk ran a quarter slower
+    mask = jnp.swapaxes(subtract_background(model, jnp.moveaxis(block, 1, 0)).mask, 0, 1)
+    return mask, jnp.sum(mask, axis=(2, 3), dtype=jnp.int32)
 
 
 def _check_sizes(rig: CameraRig, video: MultiViewVideo, what: str) -> None:
@@ -77,7 +94,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     if len(videos) != rig.num_views:
         raise ValueError(f"the calibration has {rig.num_views} cameras ({', '.join(rig.names)}): give one video per camera "
                          f"in that order (got {len(videos)})")
-    seconds = {"decode": 0.0, "background model": 0.0, "background": 0.0}
+    seconds = {"decode": 0.0, "background model": 0.0, "background": 0.0, "silhouettes": 0.0, "open and close": 0.0}
     if background is not None:
         if len(background) != rig.num_views:
             raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
@@ -97,7 +114,10 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     seconds["background model"] += time.perf_counter() - start
     say(f"background model: {source}")
     masks, images, stopped = [], [], None
-    with MultiViewVideo(videos, names=rig.names) as video:
+    start = time.perf_counter()
+    video = MultiViewVideo(videos, names=rig.names)
+    seconds["open and close"] += time.perf_counter() - start
+    with video:
         _check_sizes(rig, video, "the video")
         total = video.num_frames
         wanted = total if frames is None else min(int(frames), total)
@@ -110,31 +130,53 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         if not fps > 0:
             raise ValueError("the sources do not say their frame rate (image folders): give it (--fps)")
         chunks = video.chunks(chunk, frames=wanted)
+        looped = time.perf_counter()
+
+        def finish(first, block, foreground):
+            """Keep a chunk's silhouettes (waiting for them); the reason to stop, if any."""
+            start = time.perf_counter()
+            mask, area = (np.asarray(x) for x in foreground)  # (C, t, H, W), (C, t)
+            seconds["background"] += time.perf_counter() - start
+            empty = np.argwhere(area == 0)
+            t = int(empty[:, 1].min()) if len(empty) else mask.shape[1]
+            masks.append(mask[:, :t])
+            if keep_images:
+                images.append(block[:, :t])
+            if len(empty):
+                c = int(empty[np.argmin(empty[:, 1]), 0])
+                return f"camera {rig.names[c]!r} sees nobody at frame {first + t} (an empty silhouette)"
+            return None
+
+        # Each chunk's subtraction is dispatched (XLA runs it on its own threads) before the next
+        # chunk is decoded, and waited for after: decoding and subtraction run side by side. On
+        # 2 cores both stages already use both (no gain measured, docs/video.md); with more
+        # cores, or the subtraction on a GPU, decoding runs on what would be idle.
+        pending = None
         while True:
             start = time.perf_counter()
             try:
                 first, block = next(chunks)
             except StopIteration:
-                break
+                block, failure = None, None
             except VideoFileError as err:
-                stopped = str(err)
-                break
+                block, failure = None, str(err)
             finally:
                 seconds["decode"] += time.perf_counter() - start
-            start = time.perf_counter()
-            mask = np.asarray(subtract_background(model, np.moveaxis(block, 1, 0)).mask).swapaxes(0, 1)  # (C, t, H, W)
-            seconds["background"] += time.perf_counter() - start
-            area = mask.sum(axis=(2, 3))
-            if np.any(area == 0):
-                c, t = np.argwhere(area == 0)[np.argmin(np.argwhere(area == 0)[:, 1])]
-                stopped = f"camera {rig.names[c]!r} sees nobody at frame {first + t} (an empty silhouette)"
-                masks.append(mask[:, :t])
-                if keep_images:
-                    images.append(block[:, :t])
+            if block is not None:
+                start = time.perf_counter()
+                foreground = _silhouettes(model, block)
+                seconds["background"] += time.perf_counter() - start
+            if pending is not None:
+                stopped = finish(*pending)
+                if stopped:
+                    break
+            if block is None:
+                stopped = failure
                 break
-            masks.append(mask)
-            if keep_images:
-                images.append(block)
+            pending = (first, block, foreground)
+        seconds["silhouettes"] = time.perf_counter() - looped
+        closing = time.perf_counter()
+    seconds["open and close"] += time.perf_counter() - closing
     count = sum(m.shape[1] for m in masks)
     if count == 0:
         raise VideoFileError(f"nothing to track: {stopped}")
