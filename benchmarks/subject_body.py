@@ -29,6 +29,10 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   the start; the trackers track the silhouettes alone with that body, as in the other conditions;
 - ``keypoints-refined``: ``keypoints``, then the second pass on a ``--refine-with`` run that
   tracks both cues (``tracking.refine_body``, on the keypoints alone where the first pass was);
+- ``truth-calibrated``: the second pass (``tracking.refine_body``) run on the true body and the
+  true poses, its prior centred on the truth: what a silhouette calibration gives when it starts
+  at the right answer, the floor of every ``calibrated`` and ``refined`` run (docs/body.md, "The
+  floor of a calibration from silhouettes");
 - ``true``: the subject's own skeleton and capsule radii written into the file;
 - ``true-shape``: the subject's own skeleton, and the radii fitted to ``--shape-frames``
   frames' silhouettes spread over the scene at the true poses (the lengths held:
@@ -51,7 +55,7 @@ LIMB_FACTORS = (("spine", 1.12), ("neck", 0.9), ("shoulder", 1.1), ("upper_arm",
                 ("thigh", 1.12), ("shin", 0.86))
 RADIUS_FACTOR = 1.2
 CONDITIONS = ("default", "joints", "joints-default-radii", "joints-fitted-radii", "calibrated", "refined", "keypoints",
-              "keypoints-refined", "true", "true-shape")
+              "keypoints-refined", "truth-calibrated", "true", "true-shape")
 SETTINGS = {"4x160x120": (4, 160, 120), "3x80x60": (3, 80, 60)}
 
 
@@ -70,6 +74,8 @@ def main():
     parser.add_argument("--shape-frames", type=int, default=12, help="frames the true-shape condition fits the radii on")
     parser.add_argument("--refine-frames", type=int, default=None,
                         help="frames of the refined condition's second pass (default: tracking.refine_frame_count, 12 at 4x160x120)")
+    parser.add_argument("--refine-passes", type=int, default=1,
+                        help="the refined condition's passes on tracked frames, each on a run with the last pass's body (default 1)")
     add_output_arguments(parser, plot="draw frame 0 of the walk in the first setting's views, rendered by both renderers, "
                                       "to this PNG (docs/figures/solid_body.png) before the runs")
     parser.add_argument("--plot-only", action="store_true", help="draw the figure and stop")
@@ -182,8 +188,10 @@ def main():
             for condition in args.conditions:
                 start = time.perf_counter()
                 row = {"setting": setting, "renderer": renderer, "condition": condition, "methods": {}, "scenes": {}}
+                if condition == "refined":
+                    row["refine_passes"] = args.refine_passes
                 for scene_seq, gait in zip(scenes, ("walk", "jog")):
-                    keep = ("skeleton_offsets", "capsule_radii") if condition.startswith("true") else ()
+                    keep = ("skeleton_offsets", "capsule_radii") if condition.startswith("true") or condition == "truth-calibrated" else ()
                     drop = {k: None for k in ("pose", "pose_layout", "skeleton_offsets", "capsule_radii") if k not in keep}
                     test = scene_seq.replace(**drop)
                     body = {"default": "default", "joints": "auto", "calibrated": "calibrate", "refined": "calibrate",
@@ -201,15 +209,18 @@ def main():
                     scene = add_ground_prior(scene, clearance)
                     if condition == "true-shape":
                         scene = fitted_shape(scene)
-                    if condition == "refined":
-                        tracker = make_tracker(args.refine_with, scene)
-                        first, _, _ = track_runs(tracker, jax.random.fold_in(roots[args.refine_with], 10_000)[None], scene)
-                        try:
+                    try:
+                        if condition == "truth-calibrated":  # the second pass from the right answer: its floor
+                            scene = refine_body(scene, np.asarray(motions_x[gait == "jog"].pose), key=key, frames=args.refine_frames,
+                                                start_joints=scene.truth_joints[0])
+                        for _ in range(args.refine_passes if condition == "refined" else 0):
+                            tracker = make_tracker(args.refine_with, scene)
+                            first, _, _ = track_runs(tracker, jax.random.fold_in(roots[args.refine_with], 10_000)[None], scene)
                             scene = refine_body(scene, first[0], key=key, frames=args.refine_frames, start_joints=scene.truth_joints[0])
-                        except ConfigurationError as err:
-                            row["scenes"][gait] = {"refused": str(err)}
-                            print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)
-                            continue
+                    except ConfigurationError as err:
+                        row["scenes"][gait] = {"refused": str(err)}
+                        print(f"{setting} {renderer} {condition} {gait}: refused: {err}", flush=True)
+                        continue
                     info = {"body": scene.body_source, "start_error_mm": scene.start_error_mm}
                     if scene.body_calibration is not None:
                         info["calibration"] = scene.body_calibration.summary()
