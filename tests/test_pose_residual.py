@@ -161,3 +161,45 @@ def test_a_decaying_residual_is_an_ar1_process_that_fades_to_the_manifold(getkey
     for bad in (0.0, 1.5, float("nan")):
         with pytest.raises(ValueError, match="decay must be a number in"):
             PoseResidual(inner, scales, bad)
+
+
+def test_a_residual_with_a_target_fades_to_that_offset(getkey):
+    """With a target ``m`` the residual draws ``m + d (r - m) + N(0, scales^2)``, its density is
+    that Gaussian's, the start is still the given pose, and the inner dynamics start from the pose
+    less ``m``; no target is a target of zeros; a target of the wrong shape is refused."""
+    from jaxtrack.dynamics import PoseRandomWalk
+
+    inner = PoseRandomWalk(jnp.full(32, 0.01))
+    scales = jnp.linspace(0.005, 0.03, 26)
+    target = jnp.linspace(0.2, -0.1, 26)
+    dynamics = PoseResidual(inner, scales, 0.8, target)
+    offset = jnp.linspace(-0.3, 0.3, 26)
+    start = jnp.concatenate([jnp.zeros((20000, 32)), jnp.broadcast_to(offset, (20000, 26))], axis=1)
+    drawn, _ = dynamics.propose(getkey(), start)
+    residual = np.asarray(drawn[:, 32:])
+    centre = np.asarray(target) + 0.8 * (np.asarray(offset) - np.asarray(target))
+    np.testing.assert_allclose(residual.mean(0), centre, atol=4 * 0.03 / np.sqrt(20000))
+    np.testing.assert_allclose(residual.std(0), scales, rtol=0.03)
+    walk = -0.5 * np.sum(((residual[:3] - centre) / np.asarray(scales)) ** 2, axis=1)
+    expected = np.asarray(inner.log_transition(start[:3, :32], drawn[:3, :32])) + walk
+    np.testing.assert_allclose(dynamics.log_transition(start[:3], drawn[:3]), expected, rtol=1e-5)
+
+    pose = jnp.zeros(32).at[6:].set(offset)
+    states = dynamics.init(getkey(), pose, 2)
+    np.testing.assert_allclose(dynamics.to_pose(states), np.broadcast_to(pose, (2, 32)), atol=1e-6)
+    np.testing.assert_allclose(states[:, 6:32], np.broadcast_to(offset - target, (2, 26)), atol=1e-6)  # the inner pose: pose - m
+
+    key = getkey()
+    zeros = PoseResidual(inner, scales, 0.8, jnp.zeros(26))
+    np.testing.assert_array_equal(zeros.propose(key, start[:5])[0], PoseResidual(inner, scales, 0.8).propose(key, start[:5])[0])
+    with pytest.raises((ValueError, TypeError)):  # jaxtyping's check of "angles", or the module's own
+        PoseResidual(inner, scales, 0.8, jnp.zeros(25))
+    fitted = fit_pose_residual(inner, np.cumsum(np.full((20, 32), 0.01), axis=0), 1.0, decay=0.9, target=np.asarray(target))
+    np.testing.assert_allclose(fitted.target, target)
+    with pytest.raises(ValueError, match="one offset per joint angle"):
+        fit_pose_residual(inner, np.cumsum(np.full((20, 32), 0.01), axis=0), 1.0, target=np.zeros(25))
+    with pytest.raises(ConfigurationError, match="residual_target"):
+        ExperimentConfig(residual_target=[float("nan")] * 26)
+    config = ExperimentConfig(residual_target=np.asarray(target))  # kept as a tuple, given to the trackers with a residual
+    np.testing.assert_allclose(config.residual_target_of("latentpf"), target)
+    assert config.residual_target_of("sir") is None

@@ -191,7 +191,7 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
                   velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None,
                   residual_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None, residual_scale: float = 0.0,
-                  residual_decay: float = 1.0):
+                  residual_decay: float = 1.0, residual_target=None):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
     With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
@@ -204,7 +204,7 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     With ``residual_scale`` > 0 the dynamics (inside the velocity) carry an off-manifold pose
     residual (``jaxtrack.dynamics.PoseResidual``) whose steps are ``residual_scale`` times the
     RMS joint-angle steps of the ``residual_from`` poses, and which fades by ``residual_decay`` a
-    frame (1: a random walk).
+    frame (1: a random walk) to ``residual_target`` ((A,) joint-angle offset, radians; None: 0).
 
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``), given by the filter's
@@ -212,6 +212,8 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     (``dynamics.is_refinable``) can be refined."""
     recipe.check_budget(budget)
     tracker = recipe.build(cast_floating(fitted, TRACKING_DTYPE), likelihood, budget)
+    if residual_target is not None and not residual_scale:
+        raise ValueError("a residual target needs a pose residual (residual_scale > 0)")
     wants = [what for what, wanted in (("a pose residual", residual_scale), ("a velocity", velocity_from is not None),
                                        ("refined moves", budget.refine_steps)) if wanted]
     if wants and not isinstance(tracker, AbstractComposedFilter):
@@ -222,7 +224,7 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
             raise ValueError(f"a pose residual for {recipe.label} needs validation poses to fit it on")
         with jax.enable_x64(True):
             residual = fit_pose_residual(tracker.dynamics, [np.asarray(p, np.float64) for p in residual_from], residual_scale,
-                                         decay=residual_decay)
+                                         decay=residual_decay, target=residual_target)
         tracker = tracker.with_dynamics(cast_floating(residual, TRACKING_DTYPE))
     if velocity_from is not None:
         velocity = fit_velocity(tracker.dynamics, velocity_from)
@@ -763,7 +765,7 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
         return build_tracker(recipe, fitted, likelihood, spec.tracking_budget,
                              velocity_from=motion.validation if spec.velocity_of(method) else None,
                              residual_from=motion.validation, residual_scale=spec.residual_of(method),
-                             residual_decay=spec.residual_decay_of(method))
+                             residual_decay=spec.residual_decay_of(method), residual_target=spec.residual_target_of(method))
 
     tracker = build(scene.likelihood)
     if scene.body_calibration is not None and not spec.refines_body(scene):

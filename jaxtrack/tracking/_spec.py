@@ -13,6 +13,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
 from ..body import check_height
 from ..errors import ConfigurationError
 from ..likelihood import DEFAULT_LIKELIHOOD, get_likelihood
@@ -103,6 +105,10 @@ class TrackingSpec:
             random walk; below 1 it fades back to the manifold, so the filter starts at the given
             pose and ends on its manifold. None: with each tracker's own residual its own decay
             (``TrackerRecipe.residual_decay``), with a ``residual`` named 1.
+        residual_target: the joint-angle offset (A,) that residual fades to instead of to the
+            manifold (radians; ``dynamics.PoseResidual.target``): the tracked person's mean
+            posture less the training motion's (docs/subjects.md, "A person's own posture");
+            None: 0.
         start: where ``track_sequence`` starts (``tracking.START_CHOICES``): "truth" (frame 0's
             ground truth) or "auto" (``tracking.automatic_start``: found from the first frame's
             images on the model's latent space; no ground truth needed).
@@ -134,6 +140,7 @@ class TrackingSpec:
     velocity: bool | None = None
     residual: float | None = None
     residual_decay: float | None = None
+    residual_target: Any = None  # (A,) floats or None; kept as a tuple
     start: str = "truth"
 
     def __post_init__(self):
@@ -168,6 +175,12 @@ class TrackingSpec:
         if self.residual_decay is not None and (isinstance(self.residual_decay, bool)
                                                 or not isinstance(self.residual_decay, (int, float)) or not 0 < self.residual_decay <= 1):
             raise ConfigurationError(f"residual_decay must be a number in (0, 1], got {self.residual_decay!r}")
+        if self.residual_target is not None:
+            target = np.asarray(self.residual_target)
+            if target.ndim != 1 or not target.size or target.dtype.kind not in "fiu" or not np.all(np.isfinite(target)):
+                raise ConfigurationError("residual_target must be one finite offset per joint angle (radians), "
+                                         f"got {self.residual_target!r}")
+            object.__setattr__(self, "residual_target", tuple(float(v) for v in target))
         if self.manifold is not None and self.manifold not in manifold_kinds(trackable=True):
             raise ConfigurationError(f"manifold must be one of {manifold_kinds(trackable=True)} or None (each tracker's own), "
                                      f"got {self.manifold!r}")
@@ -236,6 +249,11 @@ class TrackingSpec:
     def residual_decay_of(self, method: str) -> float:
         """The factor per frame of tracker ``method``'s pose residual (1: a random walk)."""
         return get_tracker(method).residual_decay_for(self.residual, self.residual_decay)
+
+    def residual_target_of(self, method: str):
+        """(A,) the offset tracker ``method``'s pose residual fades to, or None (0; also for a
+        tracker without a residual)."""
+        return np.asarray(self.residual_target, np.float64) if self.residual_target is not None and self.residual_of(method) else None
 
     def latent_dim_of(self, method: str) -> int | None:
         """The latent dimension of tracker ``method``'s manifold (None if it needs none)."""
