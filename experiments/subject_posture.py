@@ -1,8 +1,9 @@
 """A person's own posture: does removing each subject's mean joint angles carry a manifold across people?
 
 Issue #46's first suggestion, "poses normalised per subject (joint angles relative to the
-subject's own mean posture)", on the walking protocol (``jaxtrack protocol walk-loso``'s folds,
-3 noisy 80x60 views of the solid body, budget 500). For each fold:
+subject's own mean posture)", on a leave-one-subject-out protocol (``--protocol walk-loso``, the
+default, or ``jog-loso``: ``jaxtrack protocol``'s folds, 3 noisy 80x60 views of the solid body,
+budget 500). For each fold:
 
 - **centred training**: each training and validation take's joint angles shifted by the pooled
   mean ``P`` of the training takes less its own subject's mean, so every training subject walks
@@ -85,6 +86,7 @@ def track_fold(train, validation, scene, names, config, target):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--protocol", default="walk-loso", help="walk-loso or jog-loso")
     parser.add_argument("--data", default="../shared/data")
     parser.add_argument("--subjects", nargs="+", help="test subjects (default: each in turn)")
     parser.add_argument("--without", nargs="*", default=[], help="the protocol without these subjects (nested validation)")
@@ -101,10 +103,10 @@ def main():
     from jaxtrack.body import GLOBAL_DOFS
     from jaxtrack.experiment import ExperimentConfig, convert_takes, get_protocol, render_test_take, run_experiment
 
-    protocol = get_protocol("walk-loso")
+    protocol = get_protocol(args.protocol)
     if args.without:
         protocol = protocol.without(*args.without)
-    converted = os.path.join(tempfile.gettempdir(), "jaxtrack_subject_posture_takes")
+    converted = os.path.join(tempfile.gettempdir(), f"jaxtrack_subject_posture_{args.protocol}")
     sequences = convert_takes(protocol.takes(), args.data, converted, say=lambda *a, **k: None)
     key = jax.random.key(0)  # the protocol's scenes: run_protocol's keys at seed 0
 
