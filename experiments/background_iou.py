@@ -19,7 +19,8 @@ from jaxtrack.image import fit_background, subtract_background
 from jaxtrack.io import MultiViewVideo, load_sequence
 
 SETTINGS = [  # (noise floor in levels of 255, low, high, opening radius, closing radius)
-    (2, 4, 8, 1, 2), (2, 6, 12, 1, 1), (3, 4, 8, 1, 2), (3, 4, 8, 1, 1), (3, 6, 12, 1, 1)]
+    (2, 4, 8, 1, 2), (2, 6, 12, 1, 1), (3, 4, 8, 1, 2), (3, 4, 8, 1, 1), (3, 6, 12, 1, 1),
+    (3, 6, 12, 0, 1), (3, 8, 16, 1, 1), (3, 8, 16, 1, 2), (3, 8, 16, 0, 1), (3, 8, 16, 0, 2), (4, 8, 16, 0, 1)]
 
 
 def read(paths) -> np.ndarray:

@@ -50,10 +50,20 @@ from jaxtrack.io import load_sequence
 out = sys.argv[1]
 print("| images | views | seed | body | run | mean error (mm) | frame 0 (mm) |")
 print("|---|---|---|---|---|---|---|")
+means = {}
 for path in sorted(glob.glob(os.path.join(out, "*x*_*_s*_*_*.npz"))):
     size, views, seed, body, run = os.path.basename(path)[:-4].split("_", 4)
     truth = load_sequence(os.path.join(out, f"film_{size}_{views}", "truth.npz")).joints3d
     est = load_sequence(path).joints3d
     err = 1000 * np.linalg.norm(est - truth[: len(est)], axis=-1).mean(axis=-1)
     print(f"| {size} | {views} | {seed[1:]} | {body} | {run} | {err.mean():.1f} | {err[0]:.1f} |")
+    means.setdefault((size, views, body), {}).setdefault(run, []).append((err.mean(), err[0]))
+print()
+print("| images | views | body | run | seeds | mean error (mm) | frame 0 (mm) | over the reference |")
+print("|---|---|---|---|---|---|---|---|")
+for (size, views, body), runs in sorted(means.items()):
+    reference = np.mean([e for e, _ in runs.get("reference", [(np.nan, np.nan)])])
+    for run, rows in sorted(runs.items()):
+        mean, first = np.mean(rows, axis=0)
+        print(f"| {size} | {views} | {body} | {run} | {len(rows)} | {mean:.1f} | {first:.1f} | {mean / reference:.2f} |")
 PY

@@ -105,6 +105,17 @@ def test_triangulation_and_the_root_guess_recover_the_truth():
         root_guess(rig, motion.body.skeleton, silhouettes=np.zeros_like(scene.silhouettes[:, 0]))
 
 
+def test_start_search_settings_are_checked():
+    from jaxtrack.tracking import StartSearch
+
+    assert StartSearch().height_spread == 0.0
+    for bad in (-0.01, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="height_spread"):
+            StartSearch(height_spread=bad)
+    with pytest.raises(ValueError, match="particles"):
+        StartSearch(particles=0)
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_the_automatic_start_lands_near_the_truth_without_reading_it():
     from jaxtrack.manifold import make_gpdm
@@ -119,6 +130,9 @@ def test_the_automatic_start_lands_near_the_truth_without_reading_it():
     start = np.asarray(forward_kinematics(found.body.skeleton, found.initial_pose), np.float64)
     error = 1000 * np.mean(np.linalg.norm(start - np.asarray(scene.joints3d[0]), axis=-1))
     assert error < 60, error
+    # the search holds the root's height at the one given (StartSearch.height_spread = 0)
+    root_z = list(found.body.skeleton.pose_layout).index("root_z")
+    assert float(found.initial_pose[root_z]) == pytest.approx(height, abs=1e-6)
     scored = prepare_test(scene, "scored", key=jax.random.key(0), body="default", start="auto", start_model=model, root_height=height)
     assert scored.start_error_mm == pytest.approx(error, abs=1e-3)
     # 004's blobs fit their evidence from a start: the search reads the silhouettes' likelihood, so it finds the same pose

@@ -9,9 +9,12 @@
    so that ``survival`` of the particles survive, ``filters.choose_beta``) over the manifold's
    latent space (particles start at the training latent points), the root's heading (all
    around, and half of the particles within 0.5 rad of the keypoints' heading when there is
-   one: in small images the hips are a few pixels apart), its floor position (+- 0.2 m around
-   the triangulated one) and height (the validation motion's mean root height), scored by the
-   tracking likelihood on the first ``frames`` frames together. The noise of each layer
+   one: in small images the hips are a few pixels apart) and its floor position (+- 0.2 m around
+   the triangulated one), scored by the tracking likelihood on the first ``frames`` frames
+   together. The root's height is held at the validation motion's mean (``height_spread`` 0):
+   one frame's silhouettes trade the height for the knees' bend, and a search that moved it
+   left the root 4-7 cm low on filmed silhouettes, an offset the tracker then carried for the
+   whole take (docs/video.md); the tracker moves it from there. The noise of each layer
    shrinks geometrically (``shrink``). The best particle seen wins.
 3. *Polish*: ``polish_steps`` steps of Adam on the whole pose vector (every joint angle, the
    root's position and orientation), ascending the same log-likelihood by autodiff, the angles
@@ -37,7 +40,6 @@ from ..filters import choose_beta, systematic
 
 START_CHOICES = ("truth", "auto")  # where tracking starts: frame 0's ground truth, or ``automatic_start``
 _POSITION_SPREAD = 0.2  # metres: the floor position's first spread around the triangulated one
-_HEIGHT_SPREAD = 0.03  # metres
 _HEADING_SPREAD = 0.5  # radians around the keypoints' heading
 
 
@@ -51,6 +53,8 @@ class StartSearch:
         survival: the fraction of effective particles each layer keeps (the annealing rate).
         shrink: the factor on every noise scale per layer.
         frames: the first frames scored together (the pose is held, the root moved by nothing).
+        height_spread: the root height's search spread (metres, a standard deviation around
+            ``root_height``; its moves are two thirds of it); 0 holds the height (the default).
         polish_steps: Adam steps on the whole pose after the search (0: none).
         polish_rate: their learning rate (radians and metres).
     """
@@ -60,6 +64,7 @@ class StartSearch:
     survival: float = 0.5
     shrink: float = 0.75
     frames: int = 1
+    height_spread: float = 0.0
     polish_steps: int = 0
     polish_rate: float = 0.01
 
@@ -74,6 +79,8 @@ class StartSearch:
             raise ValueError(f"StartSearch.polish_steps must be a whole number >= 0, got {self.polish_steps!r}")
         if not self.polish_rate > 0:
             raise ValueError(f"StartSearch.polish_rate must be positive, got {self.polish_rate}")
+        if not (np.isfinite(self.height_spread) and self.height_spread >= 0):
+            raise ValueError(f"StartSearch.height_spread must be a length >= 0 in metres, got {self.height_spread!r}")
         if not 0 < self.shrink <= 1:
             raise ValueError(f"StartSearch.shrink must be in (0, 1], got {self.shrink}")
 
@@ -182,9 +189,9 @@ def automatic_start(key, likelihood, observations, model, rig: CameraRig, skelet
         "latent": latent[jax.random.randint(k_pick, (n,), 0, latent.shape[0])],
         "yaw": _headings(k_yaw, n, heading, dtype),
         "xy": jnp.asarray(position, dtype) + _POSITION_SPREAD * jax.random.normal(k_xy, (n, 2), dtype),
-        "z": root_height + _HEIGHT_SPREAD * jax.random.normal(k_z, (n,), dtype),
+        "z": root_height + search.height_spread * jax.random.normal(k_z, (n,), dtype),
     }
-    scales = {"latent": 0.25 * spread, "yaw": 0.3 if heading is None else 0.15, "xy": 0.08, "z": 0.02}
+    scales = {"latent": 0.25 * spread, "yaw": 0.3 if heading is None else 0.15, "xy": 0.08, "z": search.height_spread * 2.0 / 3.0}
     found, best = _search(k_run, state, scales, frames, likelihood, predict, slots, skeleton.num_dofs, search)
     polished, value = found, best
     if search.polish_steps:
