@@ -6,9 +6,12 @@
 
 Reads the film's videos and background videos, makes the silhouettes by background subtraction
 (``image.subtract_background``, its defaults) and corrupts them two ways a simpler subtraction
-would: cast shadows kept (the shadow test off) and holes (``--holes`` disks a view and frame of
+would: cast shadows kept (the shadow test off), holes (``--holes`` disks a view and frame of
 a radius in ``--hole-radius``, 1-1.5 pixels by default, cut out of each silhouette at random
-pixels of it). ``--sets`` keeps some of the three sets. Then MRPF (budget 500, the
+pixels of it) and, with ``--thresholds``, parts missed (the subtraction's thresholds raised, so
+that the parts whose colours are near the background's are lost, view after view and frame
+after frame). ``--sets`` keeps some of the first three sets; ``--variant`` adds runs with
+other options of the combined likelihood. Then MRPF (budget 500, the
 default body, the automatic start: no ground truth read, the truth only scores) tracks each set
 with the silhouettes alone and with 001's edge and foreground terms added, the edges from the
 videos' frames (Canny), and prints the mean joint error (mm) of each seed.
@@ -27,7 +30,8 @@ from jaxtrack.io import MultiViewVideo, load_sequence
 from jaxtrack.manifold import load_model
 from jaxtrack.tracking import TrackingSpec, track_sequence
 
-LIKELIHOODS = ("silhouette", "silhouette+edge+foreground")
+BASELINE = ("silhouette", {})
+DEFAULT_VARIANTS = {"+ edge + foreground": {}}
 
 
 def read(paths) -> np.ndarray:
@@ -56,7 +60,13 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--holes", type=float, default=3.0, help="mean holes a view and frame")
     parser.add_argument("--hole-radius", type=float, nargs=2, default=(1.0, 1.5), help="(min, max) pixels")
+    parser.add_argument("--thresholds", type=float, nargs=2, action="append", metavar=("LOW", "HIGH"),
+                        help="one more set: the subtraction's hysteresis thresholds raised to these noise units "
+                             "(parts whose colours are near the background's are lost; repeatable)")
     parser.add_argument("--sets", nargs="+", help="only these sets (default: all)")
+    parser.add_argument("--variant", nargs=2, action="append", metavar=("LABEL", "JSON"),
+                        help="a silhouette+edge+foreground run with these likelihood options, e.g. "
+                             "'gated' '{\"edges_near\": 3}' (repeatable; default: its defaults)")
     parser.add_argument("--json")
     args = parser.parse_args()
     truth = load_sequence(os.path.join(args.film, "truth.npz"))
@@ -71,24 +81,32 @@ def main() -> None:
         "shadows kept": np.asarray(subtract_background(model, moving, shadow_chroma=0.0).mask).swapaxes(0, 1),
     }
     sets["shadows kept, holes"] = punch_holes(np.random.default_rng(0), sets["shadows kept"], args.holes, args.hole_radius)
-    sets = {k: v for k, v in sets.items() if args.sets is None or k in args.sets}
+    for low, high in args.thresholds or ():
+        sets[f"parts missed ({low:g}, {high:g})"] = np.asarray(subtract_background(model, moving, low=low, high=high).mask).swapaxes(0, 1)
+    sets = {k: v for k, v in sets.items() if args.sets is None or k in args.sets or k.startswith("parts missed")}
     manifold, header = load_model(args.model)
     validation = load_sequence(args.validation)
+    variants = {"silhouettes alone": BASELINE}
+    variants.update({k: ("silhouette+edge+foreground", json.loads(v) if isinstance(v, str) else v)
+                     for k, v in (args.variant or DEFAULT_VARIANTS.items())})
     rows = []
     for label, masks in sets.items():
         iou = float(np.mean((masks & true).sum(axis=(2, 3)) / (masks | true).sum(axis=(2, 3))))
         sequence = truth.replace(silhouettes=masks.astype(np.uint8), images=frames)
-        for likelihood in LIKELIHOODS:
-            spec = TrackingSpec(likelihood=likelihood, body="default", start="auto")
+        for name, (likelihood, options) in variants.items():
+            spec = TrackingSpec(likelihood=likelihood, likelihood_options=options, body="default", start="auto")
             for seed in args.seeds:
                 _, joints, _ = track_sequence(sequence, manifold, header, "mrpf", validation, spec, seed=seed,
                                               say=lambda *a, **k: None)
                 error = 1000 * float(np.mean(np.linalg.norm(np.asarray(joints) - truth.joints3d[: len(joints)], axis=-1)))
-                rows.append({"silhouettes": label, "iou": iou, "likelihood": likelihood, "seed": seed, "error_mm": error})
-                print(f"{label} (IoU {iou:.3f}), {likelihood}, seed {seed}: {error:.1f} mm", flush=True)
+                rows.append({"silhouettes": label, "iou": iou, "run": name, "likelihood": likelihood, "options": options,
+                             "seed": seed, "error_mm": error})
+                print(f"{label} (IoU {iou:.3f}), {name}, seed {seed}: {error:.1f} mm", flush=True)
     print()
+    print("| silhouettes | " + " | ".join(variants) + " |")
+    print("|---|" + "---:|" * len(variants))
     for label in sets:
-        cells = [np.mean([r["error_mm"] for r in rows if r["silhouettes"] == label and r["likelihood"] == k]) for k in LIKELIHOODS]
+        cells = [np.mean([r["error_mm"] for r in rows if r["silhouettes"] == label and r["run"] == k]) for k in variants]
         print(f"| {label} | " + " | ".join(f"{c:.1f}" for c in cells) + " |")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:

@@ -9,8 +9,16 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from jaxtrack.errors import ConfigurationError
 from jaxtrack.image import sample_bilinear
-from jaxtrack.likelihood import EdgeForegroundLikelihood, make_edge_foreground_likelihood, maps_from_silhouettes
+from jaxtrack.likelihood import (
+    EdgeForegroundLikelihood,
+    SceneInputs,
+    get_likelihood,
+    make_edge_foreground_likelihood,
+    maps_from_images,
+    maps_from_silhouettes,
+)
 from jaxtrack.tracking import prepare_test
 
 from helpers import finite_difference_check, small_scene
@@ -48,6 +56,57 @@ def test_the_costs_are_bounded_by_perfect_and_absent_evidence(scene):
     assert 0.2 < float(sigma_e) < 1.0  # the outline points other parts cover (joints, overlaps) weigh less (eq. 13)
     edges_only = EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, use_foreground=False)
     assert float(costs(edges_only, pose, zeros)[1]) == 0.0
+
+
+def test_001s_own_visibility_weighs_the_edges_by_the_foreground_at_them(scene):
+    """001 eq. 13 as written: lambda = mean over a part's outline points of (1 - p_fg)^2; on
+    constant maps Sigma_e = (1 - f)^2 (1 - e)^2 (every outline point inside the views)."""
+    motion, maps, likelihood = scene
+    pose = jnp.asarray(motion.pose[0], jnp.float64)
+    written = EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, visibility="foreground")
+    costs = eqx.filter_jit(lambda lik, p, o: lik.costs(p, o))
+    for e, f in ((0.0, 0.0), (0.3, 0.6), (0.5, 1.0)):
+        frame = jax.tree.map(lambda m, v: jnp.full_like(m[0], v), maps, {"edges": e, "foreground": f})
+        sigma_e, sigma_fg = costs(written, pose, frame)
+        assert float(sigma_e) == pytest.approx((1 - f) ** 2 * (1 - e) ** 2, abs=1e-12)
+        assert float(sigma_fg) == pytest.approx((1 - f) ** 2, abs=1e-12)
+    with pytest.raises(ConfigurationError, match="visibility"):
+        EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, visibility="paper")
+
+
+@pytest.mark.slow  # 15 s on 2 cores
+def test_the_combined_recipes_weight_scales_001s_terms_alone(scene):
+    motion, maps, likelihood = scene
+    _, rig, seq = small_scene(noisy=False)
+    inputs = SceneInputs(body=likelihood.body, rig=rig, silhouettes=np.asarray(seq.silhouettes, np.float32), scale=1.0,
+                         window=None)
+    recipe = get_likelihood("silhouette+edge+foreground")
+    assert recipe.options["weight"] == 1.0 and recipe.options["visibility"] == "occlusion"
+    frame = {"silhouettes": jnp.asarray(seq.silhouettes[:, 0], jnp.float64), **jax.tree.map(lambda m: m[0], maps)}
+    poses = jnp.asarray(motion.pose[:3], jnp.float64)
+    one, three = (eqx.filter_jit(lambda lik, p, o: lik.log_likelihood(p, o))(recipe.make(inputs, weight=w), poses, frame)
+                  for w in (1.0, 3.0))
+    edge_part = likelihood.log_likelihood(poses, jax.tree.map(lambda m: m[0], maps))
+    np.testing.assert_allclose(np.asarray(three - one), 2.0 * np.asarray(edge_part), rtol=1e-5)
+    with pytest.raises(ConfigurationError, match="weight"):
+        recipe.make(inputs, weight=0.0)
+
+
+def test_maps_from_images_keep_edges_near_the_silhouettes_only():
+    frame = np.zeros((1, 40, 60, 3), np.uint8)
+    frame[0, 10:30, 10:20] = (200, 40, 40)  # the person
+    frame[0, 5:35, 45:50] = (40, 200, 40)  # clutter far from them
+    mask = np.zeros((1, 40, 60), bool)
+    mask[0, 10:30, 10:20] = True
+    everywhere, _ = maps_from_images(frame, mask)
+    near, foreground = maps_from_images(frame, mask, near=3, colour=True)
+    everywhere, near = np.asarray(everywhere)[0], np.asarray(near)[0]
+    assert everywhere[:, 44:51].max() == pytest.approx(1.0) and near[:, 35:].max() == 0.0  # 4 scales past the region: 0
+    outline = everywhere[:, :25] == 1.0  # the person's edges, as before
+    assert outline.sum() > 40 and near[:, :25][outline].min() > 0.85  # within a pixel of each
+    np.testing.assert_allclose(np.asarray(foreground), np.asarray(maps_from_images(frame, mask)[1]))
+    with pytest.raises(ConfigurationError, match="near"):
+        maps_from_images(frame, mask, near=-1)
 
 
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache

@@ -13,6 +13,7 @@ from scipy import ndimage
 from jaxtrack.image import (
     canny_edges,
     closing,
+    colour_canny_edges,
     dilate,
     distance_transform,
     edge_proximity,
@@ -164,6 +165,33 @@ def test_canny_finds_a_squares_outline_one_pixel_thin():
     weak[10:30, 40:45] = 0.15  # a faint bar: below the strong threshold and not connected to a strong edge
     assert not np.asarray(canny_edges(weak, sigma=1.0, low=0.1, high=0.5))[:, 38:].any()
     assert np.asarray(canny_edges(weak, sigma=1.0, low=0.1, high=0.12))[:, 38:].any()
+
+
+def test_colour_canny_sees_an_edge_of_equal_brightness_and_a_region_keeps_a_faint_one():
+    image = np.zeros((40, 50, 3))
+    image[:, :, 0] = 1.0
+    image[10:30, 15:35] = (0.0, 1.0, 0.0)  # a green square on red: the same grey
+    grey = image.mean(axis=-1)
+    assert not np.asarray(canny_edges(grey, sigma=1.0)).any()  # no contrast in grey
+    colour = np.asarray(colour_canny_edges(image, sigma=1.0))
+    square = np.zeros((40, 50))
+    square[10:30, 15:35] = 1.0
+    outline = np.asarray(canny_edges(square, sigma=1.0))
+    assert colour.sum() == outline.sum() and np.all(ndimage.binary_dilation(outline)[colour])  # the outline, within 1 px
+    np.testing.assert_array_equal(np.asarray(colour_canny_edges(np.repeat(square[..., None], 3, -1), sigma=1.0)),
+                                  np.asarray(canny_edges(square, sigma=1.0)))  # a grey image: the same edges
+    # a region: only edges inside it, the thresholds against the largest gradient there
+    faint = square.copy()
+    faint[5:35, 40:45] = 0.05  # a bar with a twentieth of the square's contrast
+    region = np.zeros((40, 50), bool)
+    region[:, 38:] = True
+    assert not np.asarray(canny_edges(faint, sigma=1.0))[:, 38:].any()
+    inside = np.asarray(canny_edges(faint, sigma=1.0, region=region))
+    assert inside[:, 38:].any() and not inside[:, :38].any()
+    with pytest.raises(ValueError, match="region must have"):
+        canny_edges(faint, region=region[:-1])
+    with pytest.raises(ValueError, match="height, width, 3"):
+        colour_canny_edges(faint)
 
 
 def test_edge_proximity_falls_off_with_the_distance():

@@ -19,6 +19,7 @@ from ._colour import to_float as to_float
 from ._distance import distance_transform as distance_transform
 from ._distance import squared_distance_transform as squared_distance_transform
 from ._edges import canny_edges as canny_edges
+from ._edges import colour_canny_edges as colour_canny_edges
 from ._edges import edge_proximity as edge_proximity
 from ._edges import hysteresis as hysteresis
 from ._edges import non_maximum_suppression as non_maximum_suppression

@@ -78,21 +78,62 @@ def _hysteresis(strong, weak):
     return _bitmask.unpack(edges, width)
 
 
-def canny_edges(image, sigma: float = 1.0, low: float = 0.1, high: float = 0.2) -> Bool[Array, "... H W"]:
+def canny_edges(image, sigma: float = 1.0, low: float = 0.1, high: float = 0.2, *, region=None) -> Bool[Array, "... H W"]:
     """Canny edges of (..., H, W) images: blur by ``sigma`` pixels, Sobel, non-maximum
     suppression, hysteresis between ``low`` and ``high`` (fractions of each image's largest
-    gradient magnitude, 0 <= low <= high <= 1). An image without contrast has no edges."""
+    gradient magnitude, 0 <= low <= high <= 1). An image without contrast has no edges.
+
+    ``region`` (..., H, W) bool, if given: only edges inside it, the thresholds fractions of the
+    largest gradient inside it (a person's edges against the clutter of the rest of the frame)."""
+    image = _check_image(image)
+    return _canny(image, _region(region, image.shape), *_thresholds(sigma, low, high))
+
+
+def colour_canny_edges(image, sigma: float = 1.0, low: float = 0.1, high: float = 0.2, *,
+                       region=None) -> Bool[Array, "... H W"]:
+    """Canny edges of (..., H, W, 3) colour images (floats): each pixel's gradient is that of the
+    channel where it is largest (as OpenCV's Canny does for colour), so an edge between two
+    colours of the same brightness is found; otherwise as ``canny_edges``."""
+    image = jnp.asarray(image)
+    if image.ndim < 3 or image.shape[-1] != 3:
+        raise ValueError(f"a colour image must be (..., height, width, 3), got shape {image.shape}")
+    channels = _check_image(jnp.moveaxis(image, -1, -3))  # (..., 3, H, W)
+    return _colour_canny(channels, _region(region, channels.shape[:-3] + channels.shape[-2:]), *_thresholds(sigma, low, high))
+
+
+def _thresholds(sigma, low, high):
     if not (0 <= low <= high <= 1):
         raise ValueError(f"thresholds must satisfy 0 <= low <= high <= 1 (fractions of the largest gradient), got {low}, {high}")
-    return _canny(_check_image(image), float(sigma), float(low), float(high))
+    return float(sigma), float(low), float(high)
 
 
-@functools.partial(jax.jit, static_argnums=(1, 2, 3))
-def _canny(image, sigma: float, low: float, high: float):
+def _region(region, shape):
+    if region is None:
+        return jnp.ones(shape, bool)
+    region = jnp.asarray(region, bool)
+    if region.shape != shape:
+        raise ValueError(f"region must have the image's shape {shape}, got {region.shape}")
+    return region
+
+
+@functools.partial(jax.jit, static_argnums=(2, 3, 4))
+def _canny(image, region, sigma: float, low: float, high: float):
     dx, dy = sobel(gaussian_blur(image, sigma))
-    thin = non_maximum_suppression(dx, dy)
-    scale = jnp.max(jnp.sqrt(dx**2 + dy**2), axis=(-2, -1), keepdims=True)
-    live = scale > 1e-6 * jnp.maximum(1.0, jnp.max(jnp.abs(image), axis=(-2, -1), keepdims=True))
+    return _thin_and_link(dx, dy, region, jnp.max(jnp.abs(image), axis=(-2, -1), keepdims=True), low, high)
+
+
+@functools.partial(jax.jit, static_argnums=(2, 3, 4))
+def _colour_canny(channels, region, sigma: float, low: float, high: float):
+    dx, dy = sobel(gaussian_blur(channels, sigma))  # (..., 3, H, W)
+    best = jnp.argmax(dx**2 + dy**2, axis=-3, keepdims=True)
+    dx, dy = (jnp.take_along_axis(d, best, axis=-3)[..., 0, :, :] for d in (dx, dy))
+    return _thin_and_link(dx, dy, region, jnp.max(jnp.abs(channels), axis=(-3, -2, -1))[..., None, None], low, high)
+
+
+def _thin_and_link(dx, dy, region, brightest, low: float, high: float):
+    thin = jnp.where(region, non_maximum_suppression(dx, dy), 0.0)
+    scale = jnp.max(jnp.where(region, jnp.sqrt(dx**2 + dy**2), 0.0), axis=(-2, -1), keepdims=True)
+    live = scale > 1e-6 * jnp.maximum(1.0, brightest)
     strong = live & (thin >= high * scale) & (thin > 0)
     weak = live & (thin >= low * scale) & (thin > 0)
     return hysteresis(strong, weak)

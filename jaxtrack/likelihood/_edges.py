@@ -14,7 +14,9 @@ foreground map, read bilinearly at those points,
 where o is the chance that another part covers the outline point: the largest, over the other
 capsules nearer the camera, of a soft inside test (a logistic of the radius less the distance to
 their projected axis, ``edge_width`` pixels wide). An occluded part's missing edges then cost
-little (001's remedy for parts that make no edge). ``scale`` is the temperature (the
+little (001's remedy for parts that make no edge). ``visibility="foreground"`` takes o as 001
+eq. 13 writes it instead: the foreground map at the outline point, so that an outline lying on
+the foreground (a part seen against the body) weighs little. ``scale`` is the temperature (the
 experiment's ``--likelihood-scale``). Points outside a view read 0 (the worst evidence); a view
 behind which the body lies costs the maximum. Smooth in the pose where the maps are, so
 gradient-refined moves and the body calibration work with it.
@@ -31,10 +33,11 @@ from .._custom_types import Array, Float
 from ..body import BodyModel
 from ..camera import CameraRig, focal_lengths, project_points
 from ..errors import ConfigurationError
-from ..image import canny_edges, edge_proximity, gaussian_blur, sample_bilinear, to_float
+from ..image import canny_edges, dilate, edge_proximity, gaussian_blur, sample_bilinear, to_float
 from ._base import AbstractLikelihood
 
 DEPTH_SOFTNESS = 0.02  # metres: how sharply "nearer the camera" switches between two parts
+VISIBILITY_CHOICES = ("occlusion", "foreground")
 
 
 def _segment_distance(p, a, b):
@@ -52,6 +55,8 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
         points: sample points per outline side and per axis of each capsule.
         edge_width: pixels over which the occlusion test goes from inside to outside.
         use_edges, use_foreground: which of the two terms to score (001 sums both).
+        visibility: what covers an outline point in eq. 13, "occlusion" (the other capsules) or
+            "foreground" (the foreground map, as 001 writes it); module docstring.
 
     A frame's observation is ``{"edges": (C, H, W), "foreground": (C, H, W)}``, maps in [0, 1]
     (``image.edge_proximity``; a foreground probability or a binary silhouette, blurred).
@@ -64,8 +69,12 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
     edge_width: float = eqx.field(static=True, default=1.0)
     use_edges: bool = eqx.field(static=True, default=True)
     use_foreground: bool = eqx.field(static=True, default=True)
+    visibility: str = eqx.field(static=True, default="occlusion")
 
     def __check_init__(self):
+        if self.visibility not in VISIBILITY_CHOICES:
+            raise ConfigurationError(f"visibility must be one of {VISIBILITY_CHOICES}, got {self.visibility!r}")
+
         if self.points < 2:
             raise ConfigurationError(f"points must be at least 2 per side, got {self.points}")
         if not (np.isfinite(self.edge_width) and self.edge_width > 0):
@@ -93,12 +102,14 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
         sigma_e = sigma_fg = jnp.zeros((), dtype)
         if self.use_edges:
             edge = jax.vmap(sample_bilinear)(observation["edges"].astype(dtype), outline)  # (C, K, 2P)
-            # occlusion: another capsule, nearer this camera, covering the outline point
-            distance = _segment_distance(outline[:, :, :, None, :], a[:, None, None], b[:, None, None])  # (C, K, 2P, K')
-            inside = jax.nn.sigmoid((radius[:, None, None, :] - distance) / self.edge_width)
-            nearer = jax.nn.sigmoid((depth[:, :, None] - depth[:, None, :]) / DEPTH_SOFTNESS)  # (C, K, K'): K' before K
-            others = 1.0 - jnp.eye(depth.shape[1], dtype=dtype)
-            covered = jnp.max(inside * (nearer * others)[:, :, None, :], axis=-1)  # (C, K, 2P)
+            if self.visibility == "foreground":  # 001 eq. 13 as written: the foreground map at the outline points
+                covered = jax.vmap(sample_bilinear)(observation["foreground"].astype(dtype), outline)
+            else:  # another capsule, nearer this camera, covering the outline point
+                distance = _segment_distance(outline[:, :, :, None, :], a[:, None, None], b[:, None, None])  # (C, K, 2P, K')
+                inside = jax.nn.sigmoid((radius[:, None, None, :] - distance) / self.edge_width)
+                nearer = jax.nn.sigmoid((depth[:, :, None] - depth[:, None, :]) / DEPTH_SOFTNESS)  # (C, K, K'): K' first
+                others = 1.0 - jnp.eye(depth.shape[1], dtype=dtype)
+                covered = jnp.max(inside * (nearer * others)[:, :, None, :], axis=-1)  # (C, K, 2P)
             visibility = jnp.mean((1.0 - covered) ** 2, axis=-1)  # (C, K): 001 eq. 13
             per_view = jnp.sum(visibility * jnp.sum((1.0 - edge) ** 2, axis=-1), axis=-1) / outline.shape[1] / outline.shape[2]
             sigma_e = jnp.mean(jnp.where(in_front, per_view, 1.0))
@@ -115,12 +126,12 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
 
 def make_edge_foreground_likelihood(body: BodyModel, rig: CameraRig, *, scale: float = 100.0, points: int = 6,
                                     edge_width: float = 1.0, use_edges: bool = True, use_foreground: bool = True,
-                                    dtype=jnp.float32) -> EdgeForegroundLikelihood:
+                                    visibility: str = "occlusion", dtype=jnp.float32) -> EdgeForegroundLikelihood:
     """An ``EdgeForegroundLikelihood`` (module docstring)."""
     if not (np.isfinite(scale) and scale > 0):
         raise ConfigurationError(f"scale must be a positive number, got {scale!r}")
     return EdgeForegroundLikelihood(body, rig, jnp.asarray(scale, dtype), int(points), float(edge_width), bool(use_edges),
-                                    bool(use_foreground))
+                                    bool(use_foreground), visibility)
 
 
 EDGE_MAP_SCALE = 2.0  # pixels: the edge-proximity map's fall-off (image.edge_proximity)
@@ -135,11 +146,21 @@ def maps_from_silhouettes(silhouettes, *, edge_scale: float = EDGE_MAP_SCALE, bl
     return edge_proximity(canny_edges(masks, sigma=1.0), edge_scale), gaussian_blur(masks, blur)
 
 
-def maps_from_images(images, silhouettes, *, edge_scale: float = EDGE_MAP_SCALE, blur: float = FOREGROUND_BLUR):
-    """(edges, foreground) from RGB frames (..., H, W, 3), whose grey Canny edges give the edge
-    map (internal edges included), and their silhouettes, the foreground map."""
-    from ..image import rgb_to_grey
+def maps_from_images(images, silhouettes, *, edge_scale: float = EDGE_MAP_SCALE, blur: float = FOREGROUND_BLUR,
+                     colour: bool = False, near: int = 0):
+    """(edges, foreground) from RGB frames (..., H, W, 3), whose Canny edges give the edge map
+    (internal edges included), and their silhouettes, the foreground map. The edges are the grey
+    frames' (``image.canny_edges``), or with ``colour`` the colour frames'
+    (``image.colour_canny_edges``); with ``near`` > 0 only those within ``near`` pixels of the
+    silhouettes, thresholded against the largest gradient there (the person's edges, not the
+    background's clutter)."""
+    from ..image import colour_canny_edges, rgb_to_grey
 
-    grey = rgb_to_grey(to_float(images))
-    masks = (jnp.asarray(silhouettes) > 0).astype(jnp.float32)
-    return edge_proximity(canny_edges(grey, sigma=1.0), edge_scale), gaussian_blur(masks, blur)
+    if isinstance(near, bool) or not isinstance(near, int) or near < 0:
+        raise ConfigurationError(f"near must be a whole number of pixels >= 0, got {near!r}")
+    masks = jnp.asarray(silhouettes) > 0
+    region = dilate(masks, near) if near else None
+    frames = to_float(images)
+    edges = (colour_canny_edges(frames, sigma=1.0, region=region) if colour
+             else canny_edges(rgb_to_grey(frames), sigma=1.0, region=region))
+    return edge_proximity(edges, edge_scale), gaussian_blur(masks.astype(jnp.float32), blur)

@@ -18,7 +18,10 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
+import numpy as np
+
 from .._registries import Registry, check_name
+from ..errors import ConfigurationError
 from ._base import AbstractLikelihood, ObservationPart
 from ._blobs import LOST_DIVERGENCE, make_blob_likelihood
 from ._edges import make_edge_foreground_likelihood
@@ -163,41 +166,51 @@ register_likelihood(LikelihoodRecipe(
     _silhouette_and_keypoints, {"edge_width": 1.0, **_KEYPOINT_OPTIONS}, observes=("silhouettes", "keypoints")))
 
 
-def _edge_foreground(inputs: SceneInputs, *, points: int, edge_width: float, edges: bool, foreground: bool) -> AbstractLikelihood:
-    return make_edge_foreground_likelihood(inputs.body, inputs.rig, scale=inputs.scale, points=points, edge_width=edge_width,
-                                           use_edges=edges, use_foreground=foreground, dtype=inputs.body.radii.dtype)
+def _edge_foreground(inputs: SceneInputs, *, points: int, edge_width: float, edges: bool, foreground: bool,
+                     visibility: str, weight: float = 1.0, **map_options) -> AbstractLikelihood:
+    # map_options (EDGE_MAP_OPTIONS) shape the maps tracking.prepare_test makes, not the likelihood
+    if not (np.isfinite(weight) and weight > 0):
+        raise ConfigurationError(f"weight must be a positive number, got {weight!r}")
+    return make_edge_foreground_likelihood(inputs.body, inputs.rig, scale=weight * inputs.scale, points=points,
+                                           edge_width=edge_width, use_edges=edges, use_foreground=foreground,
+                                           visibility=visibility, dtype=inputs.body.radii.dtype)
 
 
-_EDGE_OPTIONS = {"points": 6, "edge_width": 1.0, "edges": True, "foreground": True}
+EDGE_MAP_OPTIONS = {"edge_colour": False, "edges_near": 0}  # likelihood.maps_from_images's colour and near
+_EDGE_OPTIONS = {"points": 6, "edge_width": 1.0, "edges": True, "foreground": True, "visibility": "occlusion",
+                 **EDGE_MAP_OPTIONS}
 register_likelihood(LikelihoodRecipe(
     "edge+foreground", "paper 001's edge term with occlusion weights and foreground term (001 eqs. 12-16), on edge maps "
     "and foreground maps made from the file's images or silhouettes", _edge_foreground, _EDGE_OPTIONS,
     observes=("edges", "foreground")))
 
 
-def _silhouette_edge_foreground(inputs: SceneInputs, *, edge_width: float, points: int, edges: bool,
-                                foreground: bool) -> AbstractLikelihood:
+def _silhouette_edge_foreground(inputs: SceneInputs, *, edge_width: float, weight: float, **edge_options) -> AbstractLikelihood:
     silhouettes = _silhouette(inputs, edge_width=edge_width)
-    return ObservationPart(silhouettes, "silhouettes") + _edge_foreground(inputs, points=points, edge_width=edge_width,
-                                                                           edges=edges, foreground=foreground)
+    return ObservationPart(silhouettes, "silhouettes") + _edge_foreground(inputs, edge_width=edge_width, weight=weight,
+                                                                           **edge_options)
 
 
 register_likelihood(LikelihoodRecipe(
-    "silhouette+edge+foreground", "the silhouettes' likelihood times 001's edge and foreground terms",
-    _silhouette_edge_foreground, {"edge_width": 1.0, "points": 6, "edges": True, "foreground": True},
+    "silhouette+edge+foreground", "the silhouettes' likelihood times 001's edge and foreground terms (weight: their "
+    "temperature over the silhouettes')",
+    _silhouette_edge_foreground, {**_EDGE_OPTIONS, "weight": 1.0},
     observes=("silhouettes", "edges", "foreground")))
 
 
-def _edge_foreground_histogram(inputs: SceneInputs, *, points: int, edge_width: float, bins: int) -> AbstractLikelihood:
+def _edge_foreground_histogram(inputs: SceneInputs, *, points: int, edge_width: float, bins: int, visibility: str,
+                               **map_options) -> AbstractLikelihood:
     histogram = make_histogram_likelihood(inputs.body, inputs.rig, scale=inputs.scale, bins=bins, points=points,
                                           dtype=inputs.body.radii.dtype)
-    return _edge_foreground(inputs, points=points, edge_width=edge_width, edges=True, foreground=True) + histogram
+    return _edge_foreground(inputs, points=points, edge_width=edge_width, edges=True, foreground=True,
+                            visibility=visibility) + histogram
 
 
 register_likelihood(LikelihoodRecipe(
     "edge+foreground+histogram", "paper 001's combined weight (001 eq. 19): its edge, foreground and colour-histogram terms "
     "(001 eqs. 12-18), the histograms' references taken at the start pose on the first frame; needs the file's images",
-    _edge_foreground_histogram, {"points": 6, "edge_width": 1.0, "bins": 4}, observes=("edges", "foreground", "images")))
+    _edge_foreground_histogram, {"points": 6, "edge_width": 1.0, "bins": 4, "visibility": "occlusion", **EDGE_MAP_OPTIONS},
+    observes=("edges", "foreground", "images")))
 
 
 def _template(inputs: SceneInputs, *, size: int, spacing: float) -> AbstractLikelihood:

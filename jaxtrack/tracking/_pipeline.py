@@ -440,7 +440,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     edges = foreground = None
     if {"edges", "foreground"} & set(recipe.observes):  # 001's maps, from the images' edges where the file has images
         images = None if sequence.images is None else sequence.images[:, :frames]
-        edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(images, observed))
+        chosen = {**recipe.options, **dict(likelihood_options or {})}
+        edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(
+            images, observed, colour=bool(chosen.get("edge_colour", False)), near=int(chosen.get("edges_near", 0))))
         edges, foreground = np.asarray(edges), np.asarray(foreground)
     images = None
     if "images" in recipe.observes:
