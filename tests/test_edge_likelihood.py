@@ -23,6 +23,8 @@ from jaxtrack.tracking import prepare_test
 
 from helpers import finite_difference_check, small_scene
 
+pytestmark = pytest.mark.xdist_group("edge_scene")  # one worker builds the scene fixture (--dist loadgroup)
+
 
 def test_bilinear_reading_is_scipys_inside_and_differentiable():
     image = np.random.default_rng(0).random((6, 8))
