@@ -78,8 +78,11 @@ def _optax_start(params, static, capacity: int) -> _Carry:
     initial, initial_grad = jax.value_and_grad(_loss)(params, static)
     dtype = jnp.result_type(initial)
     state = optax.tree_utils.tree_set(_OPTIMISER.init(params), value=initial, grad=initial_grad)
+    # optax's state starts with weakly typed scalars (its line search's counters), which the loop
+    # returns strongly typed: without this the second piece of a fit would compile a second loop.
+    state = jax.tree.map(lambda leaf: jnp.asarray(leaf, leaf.dtype), state)
     return _Carry(
-        params=params, state=state, step=jnp.asarray(0), evaluations=jnp.asarray(1),  # ``initial`` (with its gradient)
+        params=params, state=state, step=jnp.zeros((), int), evaluations=jnp.ones((), int),  # ``initial`` (with its gradient)
         value=initial, checkpoint=initial, done=~jnp.isfinite(initial), trace=jnp.full((capacity,), jnp.nan, dtype),
     )
 

@@ -112,12 +112,15 @@ def lbfgs_init(x0: Float[Array, " n"], *, capacity: int, memory: int = LBFGS_MEM
     """
     n, dtype = x0.shape[0], x0.dtype
     zeros = jnp.zeros(n, dtype)
+    # The counters are strongly typed, as the loop returns them: a weakly typed start would make
+    # the second piece of a fit (``fit_model(..., progress=True)``) a new program to compile.
+    count = lambda: jnp.zeros((), int)  # noqa: E731
     return LBFGSState(
         x=x0, loss=jnp.asarray(jnp.inf, dtype), grad=zeros, direction=zeros, alpha=jnp.asarray(0.0, dtype),
         low=jnp.asarray(0.0, dtype), high=jnp.asarray(jnp.inf, dtype), low_loss=jnp.asarray(jnp.inf, dtype), low_grad=zeros,
         s=jnp.zeros((memory, n), dtype), y=jnp.zeros((memory, n), dtype), rho=jnp.zeros(memory, dtype),
-        filled=jnp.asarray(0), head=jnp.asarray(0), started=jnp.asarray(False), steps=jnp.asarray(0),
-        evaluations=jnp.asarray(0), trials=jnp.asarray(0), checkpoint=jnp.asarray(jnp.inf, dtype),
+        filled=count(), head=count(), started=jnp.asarray(False), steps=count(),
+        evaluations=count(), trials=count(), checkpoint=jnp.asarray(jnp.inf, dtype),
         done=jnp.asarray(False), trace=jnp.full((capacity,), jnp.nan, dtype),
     )
 
