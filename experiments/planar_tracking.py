@@ -12,7 +12,13 @@ the solid body over a photograph by one 320x240 camera at each of ``planar.TEST_
 training view), 2.2 m away and looking at a point 1.45 m high. Every tracker starts at the true markers of frame 0 and takes its
 templates there. Errors are mean distances in pixels over the 9 markers and over the 4 arm
 markers (elbows, wrists); a frame counts as tracked when its arm markers' mean error is under a
-quarter of the true spine-to-neck height in that frame (about 22 px).
+quarter of the true spine-to-neck height in that frame (about 22 px). Each row also says in how
+many frames the template likelihood scores the true markers above the tracker's estimate (a
+tracker that loses the arms while the truth scores higher lost them for want of a particle near
+the truth, not because the likelihood preferred its estimate).
+
+``--test-body default --train-on-test`` is 003's own regime: the person is the training body and
+the test takes' motion is among the training takes (the viewpoints stay unseen).
 """
 
 import argparse
@@ -32,8 +38,16 @@ TRACKED_SHARE = 0.25
 ARM_MARKERS = [planar.SPM_MARKERS.index(m) for m in ("lelbow", "lwrist", "relbow", "rwrist")]
 
 
-def fit_model(latent_dim=3, every=3):
-    train = [signalling_motion(jax.random.key(s), num_frames=300).joints3d for s in range(2)]
+def test_motion(v, frames, body, transition=(0.4, 1.2)):
+    """The 3-D motion of test video ``v`` (as ``planar.gesture_video`` makes it)."""
+    limbs = planar.TEST_LIMBS if body == "test" else None
+    return signalling_motion(jax.random.fold_in(jax.random.key(100 + v), 0), num_frames=frames, limb_lengths=limbs,
+                             transition=transition)
+
+
+def fit_model(latent_dim=3, every=3, extra=()):
+    """The SPM model of two training takes (keys 0 and 1) and ``extra`` 3-D joint sequences."""
+    train = [signalling_motion(jax.random.key(s), num_frames=300).joints3d for s in range(2)] + list(extra)
     return planar.fit_spm_model(train, latent_dim=latent_dim, every=every)
 
 
@@ -49,7 +63,11 @@ def run(method, model, video, key, options=None):
     errors = distances.mean(axis=-1)
     arm_errors = distances[:, ARM_MARKERS].mean(axis=-1)
     size = np.asarray(planar.spine_to_neck(jnp.asarray(video.markers)))
-    return markers, errors, arm_errors, arm_errors < TRACKED_SHARE * size, seconds
+    # Does the likelihood rank the truth above the estimate? (frames 1..T-1, the first frame's templates)
+    score = jax.jit(jax.vmap(tracker.templates.log_likelihood))
+    truth_higher = float(np.mean(np.asarray(score(jnp.asarray(grey[1:]), jnp.asarray(video.markers[1:], grey.dtype)))
+                                 > np.asarray(score(jnp.asarray(grey[1:]), jnp.asarray(markers[1:], grey.dtype)))))
+    return markers, errors, arm_errors, arm_errors < TRACKED_SHARE * size, seconds, truth_higher
 
 
 def manifold_floor(model, video, every=5, candidates=(1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7)):
@@ -86,6 +104,11 @@ def main():
     parser.add_argument("--background", choices=planar.BACKGROUNDS, default="photo")
     parser.add_argument("--transition", type=float, nargs=2, default=(0.4, 1.2), metavar=("SHORTEST", "LONGEST"),
                         help="the test takes' seconds between key postures (training keeps 0.4 1.2)")
+    parser.add_argument("--test-body", choices=("test", "default"), default="test",
+                        help="the person in the test videos: the test subject (planar.TEST_LIMBS) or the training body")
+    parser.add_argument("--train-on-test", action="store_true",
+                        help="003's own regime: the test takes' 3-D motion is added to the training takes (the test "
+                             "videos' viewpoints stay unseen)")
     parser.add_argument("--floor", action="store_true", help="also print the manifold's encode-decode error of each video")
     parser.add_argument("--json")
     parser.add_argument("--plot")
@@ -97,7 +120,9 @@ def main():
         model = planar.load_spm_model(args.model)
     else:
         start = time.perf_counter()
-        model, starts = fit_model(args.latent_dim, args.every)
+        extra = [test_motion(v, args.frames, args.test_body, tuple(args.transition)).joints3d
+                 for v in args.views] if args.train_on_test else ()
+        model, starts = fit_model(args.latent_dim, args.every, extra)
         print(f"fitted the SPM model in {time.perf_counter() - start:.0f} s: nu {np.asarray(model.step_sd).round(3)}")
         if args.save_model:
             planar.save_spm_model(args.save_model, model, starts)
@@ -110,19 +135,22 @@ def main():
     for v in args.views:
         view = planar.TEST_VIEWS[v]
         video = planar.gesture_video(jax.random.key(100 + v), view=view, frames=args.frames, background=args.background,
-                                     transition=tuple(args.transition))
+                                     transition=tuple(args.transition),
+                                     limb_lengths=planar.TEST_LIMBS if args.test_body == "test" else None)
         if args.floor:
             floor, floor_arms = manifold_floor(model, video)
             print(f"{args.background}, az {view[0]:g} el {view[1]:g}: the manifold's floor (true markers encoded and decoded, "
                   f"every 5th frame): {floor:.1f} px, arms {floor_arms:.1f} px")
         slow = "" if tuple(args.transition) == (0.4, 1.2) else f", {args.transition[0]:g}-{args.transition[1]:g} s"
-        name = f"{args.background}{slow}, az {view[0]:g} el {view[1]:g}"
+        regime = (", training body" if args.test_body == "default" else "") + (", poses trained" if args.train_on_test else "")
+        name = f"{args.background}{slow}{regime}, az {view[0]:g} el {view[1]:g}"
         for method in args.methods:
             rows = []
             for r in range(args.runs):
-                markers, errors, arm_errors, tracked, seconds = run(method, model, video, jax.random.key(1000 * v + r),
-                                                                    options.get(method))
+                markers, errors, arm_errors, tracked, seconds, truth_higher = run(method, model, video, jax.random.key(1000 * v + r),
+                                                                                  options.get(method))
                 rows.append({"mean_px": float(errors.mean()), "arm_px": float(arm_errors.mean()), "tracked": float(tracked.mean()),
+                             "truth_scores_higher": truth_higher,
                              "first_lost": int(np.argmin(tracked)) if not tracked.all() else len(tracked),
                              "ms_per_frame": 1000 * seconds / (len(errors) - 1)})
                 curves.setdefault((name, method), []).append(arm_errors)
@@ -133,8 +161,9 @@ def main():
             arm = np.mean([x["arm_px"] for x in rows])
             tracked = np.mean([x["tracked"] for x in rows])
             ms = np.median([x["ms_per_frame"] for x in rows[1:]] or [rows[0]["ms_per_frame"]])
+            higher = np.mean([x["truth_scores_higher"] for x in rows])
             print(f"{name:30s} {method:15s} {mean:6.1f} px, arms {arm:6.1f} px, tracked {100 * tracked:5.1f} %, "
-                  f"{ms:7.2f} ms/frame (median, warm)")
+                  f"{ms:7.2f} ms/frame (median, warm); the truth scores above the estimate in {100 * higher:.0f} % of the frames")
         if args.overlay and v == args.views[0]:
             overlay(args.overlay, video, {m: curves[("overlay", m)] for m in args.methods})
     if args.json:

@@ -104,6 +104,9 @@ def test_eq2_objective_and_the_inverse_map_find_a_training_points_latent(small_m
     nudged = manifold.latent[inactive] + 0.03
     solved = np.asarray(optimise_points(predictor, nudged, manifold.data[inactive], 100))
     np.testing.assert_allclose(solved, np.asarray(manifold.latent)[inactive], atol=2e-3)
+    # Solved a few points at a time (a remainder included), each point comes to the same place.
+    chunked = np.asarray(optimise_points(predictor, nudged, manifold.data[inactive], 100, chunk=3))
+    np.testing.assert_allclose(chunked, solved, atol=1e-8)
     # eq. 5 (encode by likelihood) of a training pose is that pose's latent point.
     poses = manifold.mean + manifold.scale * manifold.data[inactive]
     encoded = np.asarray(manifold.encode(poses, method="likelihood"))

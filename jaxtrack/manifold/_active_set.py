@@ -33,6 +33,7 @@ from ._serialise import AbstractSaveableManifold, register_manifold
 INITIALISATIONS = ("isomap", "pca")
 POINT_STEPS = 50  # BFGS iterations of eq. 2 per inactive point and round
 POINT_TOLERANCE = 1e-6
+POINT_CHUNK = 256  # points solved side by side (``optimise_points``)
 
 
 @jax.jit
@@ -69,14 +70,22 @@ def point_objective(predictor: GPPredictor, x: Float[Array, " q"], y: Float[Arra
 
 
 @eqx.filter_jit
-def optimise_points(predictor: GPPredictor, start: Float[Array, "m q"], data: Float[Array, "m d"], steps: int = POINT_STEPS):
-    """Each point's latent position by 003 eq. 2 from ``start`` (vmapped BFGS)."""
+def optimise_points(predictor: GPPredictor, start: Float[Array, "m q"], data: Float[Array, "m d"], steps: int = POINT_STEPS,
+                    chunk: int = POINT_CHUNK):
+    """Each point's latent position by 003 eq. 2 from ``start`` (BFGS, vmapped over ``chunk``
+    points at a time).
+
+    The chunks bound the memory: a vmapped BFGS loop carries the predictor's (D, D) matrices once
+    per point it solves side by side, so all N points at once would hold N D^2 numbers (27 GB
+    for 9,000 points and an active set of 600).
+    """
     solver = optx.BFGS(rtol=POINT_TOLERANCE, atol=POINT_TOLERANCE)
 
-    def solve(x0, y):
+    def solve(pair):
+        x0, y = pair
         return optx.minimise(lambda x, y: point_objective(predictor, x, y), solver, x0, args=y, max_steps=steps, throw=False).value
 
-    solved = jax.vmap(solve)(start, data)
+    solved = jax.lax.map(solve, (start, data), batch_size=max(1, min(int(chunk), start.shape[0])))
     return jnp.where(jnp.all(jnp.isfinite(solved), axis=1, keepdims=True), solved, start)
 
 
