@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import signal
 import sys
@@ -406,7 +407,8 @@ def _protocol(args) -> int:
         raise FileNotFoundError(f"{args.data}: no such folder (--data: the shared motion capture, with cmu35/ and multi_subject/)")
     check_folder(args.out)
     rows = run_protocol(protocol, args.data, args.out, config, modes=tuple(args.modes), subjects=args.subjects, views=args.views,
-                        size=args.image_size, renderer=args.renderer, progress=True)
+                        size=args.image_size, renderer=args.renderer,
+                        azimuth=args.azimuth[0] if len(args.azimuth) == 1 else args.azimuth, progress=True)
     from .experiment import protocol_table
 
     print()
@@ -609,6 +611,17 @@ def _at_least(low: int, high: int | None = None):
         return value
 
     return parse
+
+
+def _finite_float(text: str) -> float:
+    """An argparse type: a finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
+    return value
 
 
 def _fraction(text: str) -> float:
@@ -897,6 +910,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="drop these subjects from the whole protocol: its cross folds on the others are where a "
                                "setting for them is chosen without their motion (nested validation)")
     protocol.add_argument("--views", type=_at_least(1, 64), default=3, help="cameras (default: %(default)s)")
+    protocol.add_argument("--azimuth", type=_finite_float, nargs="+", default=[45.0], metavar="DEG",
+                          help="the first camera's direction from the capture area's centre, degrees from the x axis, the "
+                               "others following at equal angles; or one direction per camera (default: 45)")
     protocol.add_argument("--image-size", type=_image_size, default=(80, 60), metavar="WxH",
                           help="the test views' size in pixels (default: 80x60)")
     protocol.add_argument("--renderer", choices=RENDERERS, default="solid",

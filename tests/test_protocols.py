@@ -88,6 +88,14 @@ def _row(mode, subject, errors, budget=500):
             "methods": methods, "refused": {}, "start_error_mm": 0.3}
 
 
+def test_a_protocol_refuses_an_azimuth_per_camera_of_the_wrong_count(tmp_path):
+    config = ExperimentConfig(methods=("sir",), runs=1)
+    with pytest.raises(ConfigurationError, match="azimuth gives 2 directions for 3 cameras"):
+        run_protocol(PROTOCOLS["jog-loso"], str(tmp_path / "nowhere"), str(tmp_path / "out"), config, views=3,
+                     azimuth=[0.0, 90.0])
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_table_verdicts_are_computed_from_the_rows():
     rows = [
         _row("cross", "a", {"sir": (100, 1.0), "apf": (90, 1.0), "mrpf": (60, 1.0), "glegbpf": (80, 1.0)}),
@@ -106,6 +114,11 @@ def test_the_table_verdicts_are_computed_from_the_rows():
     assert "best manifold tracker across people glegbpf 72.0 mm, 1.20x its within-subject error (1.44x the best" in table
     assert "drift over 1.3: b cross glegbpf 1.40" in table
     assert drift_ratio([1, 1, 1, 1, 2, 2, 2, 3]) == pytest.approx(2.5)  # last two frames over the first two
+    assert "3 views, 80x60" in table  # rows from before the azimuth was recorded: the default rig's 45 degrees
+    turned = protocol_table([dict(r, azimuth=0.0) for r in rows], title="t")
+    assert "3 views (the first at 0 degrees), 80x60" in turned
+    listed = protocol_table([dict(r, azimuth=[45.0, 135.0, 225.0]) for r in rows], title="t")
+    assert "3 views (at 45, 135, 225 degrees), 80x60" in listed
 
 
 @pytest.mark.shared_data
@@ -158,3 +171,10 @@ def test_a_protocol_runs_end_to_end_and_resumes(shared_data, tmp_path):
     said.clear()
     again = run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
     assert again == json.loads(json.dumps(rows)) and sum("already" in s for s in said) == 2
+    # A protocol.json written before the rig's azimuth was recorded holds the default rig's folds.
+    assert all(r["azimuth"] == 45.0 for r in rows)
+    stored["rows"] = [{k: v for k, v in r.items() if k != "azimuth"} for r in stored["rows"]]
+    (tmp_path / "protocol.json").write_text(json.dumps(stored))
+    said.clear()
+    run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
+    assert sum("already" in s for s in said) == 2

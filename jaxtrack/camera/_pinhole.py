@@ -217,27 +217,33 @@ def default_rig(
     target_height: float = 0.9,
     focal_ratio: float = 1.2,
     dist=None,
+    azimuth: float | Sequence[float] = 45.0,
     dtype=jnp.float32,
 ) -> CameraRig:
     """A HumanEva-like rig: cameras evenly around a 4 m capture area, looking at its centre.
 
     Args:
         width, height: image size in pixels.
-        num_views: number of cameras, placed at equal angles starting at 45 degrees.
+        num_views: number of cameras, placed at equal angles starting at ``azimuth``, or at
+            the ``azimuth`` given for each.
         distance: horizontal distance of each camera from the area's centre, metres.
         camera_height, target_height: heights of the cameras and of the point they look at, metres.
         focal_ratio: focal length as a multiple of the image width.
         dist: optional (5,) or (C, 5) distortion applied to every camera.
+        azimuth: the first camera's direction from the area's centre, degrees from the world's
+            x axis towards its y axis (the others follow at ``360 / num_views`` apart), or one
+            direction per camera (``num_views`` of them).
     """
     if isinstance(num_views, bool) or not isinstance(num_views, (int, np.integer)) or num_views < 1:
         raise ValueError(f"num_views must be a positive integer, got {num_views!r}")
     if not (np.isfinite(distance) and distance > 0):
         raise ValueError(f"distance must be a positive number of metres, got {distance!r}")
+    azimuths = _camera_azimuths(azimuth, int(num_views))
     f = focal_ratio * width
     K = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1.0]])
     Rs, ts = [], []
     for c in range(num_views):
-        angle = np.pi / 4 + 2 * np.pi * c / num_views
+        angle = azimuths[c]
         eye = [distance * np.cos(angle), distance * np.sin(angle), camera_height]
         R, t = look_at(eye, [0.0, 0.0, target_height])
         Rs.append(R)
@@ -253,6 +259,20 @@ def default_rig(
         names=[f"C{c + 1}" for c in range(num_views)],
         dtype=dtype,
     )
+
+
+def _camera_azimuths(azimuth, num_views: int) -> list[float]:
+    """Each camera's direction in radians: ``azimuth`` degrees and equal steps after it, or the
+    ``num_views`` directions given."""
+    values = list(np.ravel(np.asarray(azimuth, dtype=object)))
+    if not values or any(isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v)
+                         for v in values):
+        raise ValueError(f"azimuth must be a finite number of degrees or one per camera, got {azimuth!r}")
+    if len(values) == 1:
+        return [np.deg2rad(float(values[0])) + 2 * np.pi * c / num_views for c in range(num_views)]
+    if len(values) != num_views:
+        raise ValueError(f"azimuth gives {len(values)} directions for {num_views} cameras")
+    return [float(np.deg2rad(float(v))) for v in values]
 
 
 def world_to_camera(rig: CameraRig, points: Float[Array, "*batch 3"]) -> Float[Array, "*batch views 3"]:

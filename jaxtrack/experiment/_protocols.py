@@ -24,6 +24,7 @@ import dataclasses
 import json
 import os
 import time
+from collections.abc import Sequence
 
 import jax
 import numpy as np
@@ -33,6 +34,7 @@ from ._config import ExperimentConfig
 
 FOLD_MODES = ("cross", "within")
 RENDERERS = ("solid", "capsules")
+DEFAULT_AZIMUTH = 45.0  # degrees: the default rig's first camera (camera.default_rig)
 OTHER_RADII = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 """The capsule renderer's radii, as factors of the subject's default radii per capsule group
 (the real-motion tables' mismatched body, benchmarks/real_motion.py)."""
@@ -252,8 +254,9 @@ def convert_takes(takes, data_folder: str, folder: str, *, fps: float = 60.0, se
 
 
 def render_test_take(key, sequence, *, views: int, size: tuple[int, int] = (80, 60), frames=None, renderer: str = "solid",
-                     clean: bool = False, withhold: bool = True):
-    """The test take in ``views`` noisy ``size`` (W, H) silhouette views of the default rig,
+                     clean: bool = False, withhold: bool = True, azimuth: float | Sequence[float] = DEFAULT_AZIMUTH):
+    """The test take in ``views`` noisy ``size`` (W, H) silhouette views of the default rig
+    (its first camera at ``azimuth`` degrees, ``camera.default_rig``),
     drawn by a body that is not the tracker's: ``solid`` (``data.SolidBody`` on the subject's
     skeleton) or ``capsules`` (the subject's capsules with ``OTHER_RADII``).
 
@@ -269,7 +272,7 @@ def render_test_take(key, sequence, *, views: int, size: tuple[int, int] = (80, 
         raise ConfigurationError(f"renderer must be one of {RENDERERS}, got {renderer!r}")
     body = sequence.body()
     frames = None if frames is None else min(int(frames), sequence.num_frames)
-    rig = default_rig(*size, num_views=views)
+    rig = default_rig(*size, num_views=views, azimuth=azimuth)
     noise = NO_NOISE if clean else SilhouetteNoise()
     if renderer == "solid":
         scene = scene_from_sequence(key, sequence, rig, noise, frames=frames, solid=SolidBody(body.skeleton))
@@ -330,6 +333,7 @@ def _fold_row(fold: Fold, results: dict, config: ExperimentConfig, seconds: floa
 
 def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, config: ExperimentConfig, *, modes=FOLD_MODES,
                  subjects=None, views: int = 3, size: tuple[int, int] = (80, 60), renderer: str = "solid",
+                 azimuth: float | Sequence[float] = DEFAULT_AZIMUTH,
                  progress: bool = False, say=print) -> list[dict]:
     """Run the protocol's folds end to end and write ``out_dir/protocol.json`` and
     ``out_dir/table.md`` after each fold (each fold's own experiment outputs in
@@ -340,27 +344,36 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
         config: the experiment's settings (trackers, budget, runs, seed, ...); its ``frames``
             is replaced by the protocol's ``test_frames``.
         modes, subjects: which folds (default: every subject, cross and within).
-        views, size, renderer: the test scenes (``render_test_take``).
+        views, size, renderer, azimuth: the test scenes (``render_test_take``; ``azimuth``: the
+            first camera's direction in degrees, or one per camera).
 
     Returns:
         one row per fold (``protocol_table`` draws them).
     """
+    from ..camera import default_rig
     from ..io import check_folder
     from ._run import run_experiment
 
     for mode in modes:
         if mode not in FOLD_MODES:
             raise ConfigurationError(f"fold mode must be one of {FOLD_MODES}, got {mode!r}")
+    azimuth = [float(a) for a in azimuth] if np.ndim(azimuth) else float(azimuth)
+    try:
+        default_rig(*size, num_views=views, azimuth=azimuth)  # refused before any conversion
+    except ValueError as error:
+        raise ConfigurationError(str(error)) from None
     folds = protocol.folds(modes, subjects)  # unknown subjects refused before any conversion
     check_folder(out_dir)
     sequences = convert_takes(protocol.takes(), data_folder, os.path.join(out_dir, "converted"), seed=config.seed, say=say)
-    settings = {"views": views, "size": list(size), "renderer": renderer, "seed": config.seed, "test_frames": protocol.test_frames,
+    settings = {"views": views, "size": list(size), "renderer": renderer, "azimuth": azimuth,
+                "seed": config.seed, "test_frames": protocol.test_frames,
                 "train_frames": protocol.train_frames, "methods_requested": list(config.methods)}
     json_path = os.path.join(out_dir, "protocol.json")
     rows = []
     if os.path.exists(json_path):
         with open(json_path, encoding="utf-8") as handle:
-            rows = [r for r in json.load(handle).get("rows", []) if all(r.get(k) == v for k, v in settings.items())]
+            rows = [r for r in json.load(handle).get("rows", [])
+                    if all(r.get(k, DEFAULT_AZIMUTH if k == "azimuth" else None) == v for k, v in settings.items())]
     config = dataclasses.replace(config, frames=None)
     key = jax.random.key(config.seed)
     def crop(take, frames):
@@ -380,7 +393,7 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
         # One scene per test take: the same silhouettes in the cross and the within fold.
         test_key = jax.random.fold_in(key, [t.name for t in protocol.takes()].index(fold.test.name))
         scene = render_test_take(test_key, sequences[fold.test.name], views=views, size=size, frames=protocol.test_frames,
-                                 renderer=renderer)
+                                 renderer=renderer, azimuth=azimuth)
         validation = [sequences[t.name] for t in fold.validation]
         say(f"{fold.label}: train {', '.join(t.name for t in fold.train)}; validation {', '.join(t.name for t in fold.validation)}; "
             f"test {fold.test.name} ({scene.num_frames} frames){'; ' + fold.note if fold.note else ''}")
@@ -475,7 +488,10 @@ def protocol_table(rows: list[dict], *, title: str = "") -> str:
         return title + "\n\n(no folds run yet)"
     methods = list(dict.fromkeys(m for r in rows for m in r["methods"]))
     settings = rows[0]
-    lines = [title, "", f"{settings['views']} views, {settings['size'][0]}x{settings['size'][1]}, {settings['renderer']} renderer, "
+    azimuth = settings.get("azimuth", DEFAULT_AZIMUTH)
+    first = ("" if azimuth == DEFAULT_AZIMUTH else f" (the first at {azimuth:g} degrees)" if np.ndim(azimuth) == 0
+             else f" (at {', '.join(f'{a:g}' for a in azimuth)} degrees)")
+    lines = [title, "", f"{settings['views']} views{first}, {settings['size'][0]}x{settings['size'][1]}, {settings['renderer']} renderer, "
              f"budget {settings['budget']}, {settings['runs']} runs; mean (sd) mm, drift = last quarter / first quarter", "",
              "| subject | trained on | start | nearest training pose | " + " | ".join(method_label(m) for m in methods) + " |",
              "|---|---|---:|---:|" + "---:|" * len(methods)]
