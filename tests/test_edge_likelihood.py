@@ -76,6 +76,26 @@ def test_001s_own_visibility_weighs_the_edges_by_the_foreground_at_them(scene):
         EdgeForegroundLikelihood(likelihood.body, likelihood.rig, likelihood.scale, visibility="paper")
 
 
+def test_the_foreground_weight_scales_the_foreground_term_alone(scene):
+    """ln p = -scale (Sigma_e + w_fg Sigma_fg): against the two costs, on the true and perturbed
+    poses of a frame; w_fg = 1 is 001's eq. 19 exactly; a weight that is not positive is refused."""
+    motion, maps, likelihood = scene
+    frame = jax.tree.map(lambda m: m[3], maps)
+    poses = jnp.asarray(motion.pose[3], jnp.float64) + 0.05 * jax.random.normal(jax.random.key(0), (3, motion.pose.shape[1]),
+                                                                                   jnp.float64)
+    score = eqx.filter_jit(lambda lik, p, o: lik.log_likelihood(p, o))
+    sigma_e, sigma_fg = eqx.filter_jit(lambda lik, p, o: jax.vmap(lambda q: lik.costs(q, o))(p))(likelihood, poses, frame)
+    quarter = make_edge_foreground_likelihood(likelihood.body, likelihood.rig, scale=2.0, foreground_weight=0.25,
+                                              dtype=jnp.float64)
+    np.testing.assert_allclose(np.asarray(score(quarter, poses, frame)), -2.0 * np.asarray(sigma_e + 0.25 * sigma_fg), rtol=1e-12)
+    assert np.asarray(sigma_fg).min() > 0.0  # the weight has something to scale on these poses
+    np.testing.assert_array_equal(np.asarray(score(likelihood, poses, frame)), -np.asarray(sigma_e + sigma_fg))
+    assert get_likelihood("silhouette+edge+foreground").options["foreground_weight"] == 1.0
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ConfigurationError, match="foreground_weight"):
+            make_edge_foreground_likelihood(likelihood.body, likelihood.rig, foreground_weight=bad, dtype=jnp.float64)
+
+
 @pytest.mark.slow  # 15 s on 2 cores
 def test_the_combined_recipes_weight_scales_001s_terms_alone(scene):
     motion, maps, likelihood = scene

@@ -9,7 +9,7 @@ foreground map, read bilinearly at those points,
     Sigma_e  = 1 / (C N_e) sum_c sum_k lambda_kc sum_{outline points} (1 - p_e)^2      (eqs. 14-15)
     lambda_kc = mean over k's outline points of (1 - o)^2                              (eq. 13)
     Sigma_fg = 1 / (C N_fg) sum_c sum_{axis points} (1 - p_fg)^2                       (eq. 16)
-    ln p = -scale (Sigma_e + Sigma_fg)                                                 (eq. 19)
+    ln p = -scale (Sigma_e + w_fg Sigma_fg)                                            (eq. 19)
 
 where o is the chance that another part covers the outline point: the largest, over the other
 capsules nearer the camera, of a soft inside test (a logistic of the radius less the distance to
@@ -17,7 +17,9 @@ their projected axis, ``edge_width`` pixels wide). An occluded part's missing ed
 little (001's remedy for parts that make no edge). ``visibility="foreground"`` takes o as 001
 eq. 13 writes it instead: the foreground map at the outline point, so that an outline lying on
 the foreground (a part seen against the body) weighs little. ``scale`` is the temperature (the
-experiment's ``--likelihood-scale``). Points outside a view read 0 (the worst evidence); a view
+experiment's ``--likelihood-scale``); ``foreground_weight`` is w_fg, 1 in 001's eq. 19, which
+sums the terms with equal weights (a lower one where the foreground term repeats what another
+term already reads: the silhouettes' own likelihood, docs/likelihood.md). Points outside a view read 0 (the worst evidence); a view
 behind which the body lies costs the maximum. Smooth in the pose where the maps are, so
 gradient-refined moves and the body calibration work with it.
 """
@@ -55,6 +57,7 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
         points: sample points per outline side and per axis of each capsule.
         edge_width: pixels over which the occlusion test goes from inside to outside.
         use_edges, use_foreground: which of the two terms to score (001 sums both).
+        foreground_weight: the foreground term's weight against the edge term's (001: 1).
         visibility: what covers an outline point in eq. 13, "occlusion" (the other capsules) or
             "foreground" (the foreground map, as 001 writes it); module docstring.
 
@@ -70,10 +73,14 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
     use_edges: bool = eqx.field(static=True, default=True)
     use_foreground: bool = eqx.field(static=True, default=True)
     visibility: str = eqx.field(static=True, default="occlusion")
+    foreground_weight: float = eqx.field(static=True, default=1.0)
 
     def __check_init__(self):
         if self.visibility not in VISIBILITY_CHOICES:
             raise ConfigurationError(f"visibility must be one of {VISIBILITY_CHOICES}, got {self.visibility!r}")
+        if isinstance(self.foreground_weight, bool) or not (np.isfinite(self.foreground_weight) and self.foreground_weight > 0):
+            raise ConfigurationError(f"foreground_weight must be a positive number (foreground=false drops the term), "
+                                     f"got {self.foreground_weight!r}")
 
         if self.points < 2:
             raise ConfigurationError(f"points must be at least 2 per side, got {self.points}")
@@ -121,17 +128,20 @@ class EdgeForegroundLikelihood(AbstractLikelihood):
 
     def log_likelihood(self, poses, observation):
         sigma_e, sigma_fg = jax.vmap(lambda p: self.costs(p, observation))(poses)
-        return -self.scale.astype(poses.dtype) * (sigma_e + sigma_fg)
+        return -self.scale.astype(poses.dtype) * (sigma_e + self.foreground_weight * sigma_fg)
 
 
 def make_edge_foreground_likelihood(body: BodyModel, rig: CameraRig, *, scale: float = 100.0, points: int = 6,
                                     edge_width: float = 1.0, use_edges: bool = True, use_foreground: bool = True,
-                                    visibility: str = "occlusion", dtype=jnp.float32) -> EdgeForegroundLikelihood:
+                                    visibility: str = "occlusion", foreground_weight: float = 1.0,
+                                    dtype=jnp.float32) -> EdgeForegroundLikelihood:
     """An ``EdgeForegroundLikelihood`` (module docstring)."""
     if not (np.isfinite(scale) and scale > 0):
         raise ConfigurationError(f"scale must be a positive number, got {scale!r}")
+    if isinstance(foreground_weight, bool) or not isinstance(foreground_weight, (int, float, np.number)):
+        raise ConfigurationError(f"foreground_weight must be a positive number, got {foreground_weight!r}")
     return EdgeForegroundLikelihood(body, rig, jnp.asarray(scale, dtype), int(points), float(edge_width), bool(use_edges),
-                                    bool(use_foreground), visibility)
+                                    bool(use_foreground), visibility, float(foreground_weight))
 
 
 EDGE_MAP_SCALE = 2.0  # pixels: the edge-proximity map's fall-off (image.edge_proximity)

@@ -167,18 +167,19 @@ register_likelihood(LikelihoodRecipe(
 
 
 def _edge_foreground(inputs: SceneInputs, *, points: int, edge_width: float, edges: bool, foreground: bool,
-                     visibility: str, weight: float = 1.0, **map_options) -> AbstractLikelihood:
+                     visibility: str, foreground_weight: float = 1.0, weight: float = 1.0, **map_options) -> AbstractLikelihood:
     # map_options (EDGE_MAP_OPTIONS) shape the maps tracking.prepare_test makes, not the likelihood
     if not (np.isfinite(weight) and weight > 0):
         raise ConfigurationError(f"weight must be a positive number, got {weight!r}")
     return make_edge_foreground_likelihood(inputs.body, inputs.rig, scale=weight * inputs.scale, points=points,
                                            edge_width=edge_width, use_edges=edges, use_foreground=foreground,
-                                           visibility=visibility, dtype=inputs.body.radii.dtype)
+                                           visibility=visibility, foreground_weight=foreground_weight,
+                                           dtype=inputs.body.radii.dtype)
 
 
 EDGE_MAP_OPTIONS = {"edge_colour": False, "edges_near": 0}  # likelihood.maps_from_images's colour and near
 _EDGE_OPTIONS = {"points": 6, "edge_width": 1.0, "edges": True, "foreground": True, "visibility": "occlusion",
-                 **EDGE_MAP_OPTIONS}
+                 "foreground_weight": 1.0, **EDGE_MAP_OPTIONS}
 register_likelihood(LikelihoodRecipe(
     "edge+foreground", "paper 001's edge term with occlusion weights and foreground term (001 eqs. 12-16), on edge maps "
     "and foreground maps made from the file's images or silhouettes", _edge_foreground, _EDGE_OPTIONS,
