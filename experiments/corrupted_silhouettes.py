@@ -12,7 +12,7 @@ pixels of it) and, with ``--thresholds``, parts missed (the subtraction's thresh
 that the parts whose colours are near the background's are lost, view after view and frame
 after frame). ``--sets`` keeps some of the first three sets; ``--variant`` adds runs with
 other options of the combined likelihood. Then MRPF (budget 500, the
-default body, the automatic start: no ground truth read, the truth only scores) tracks each set
+default body or another ``--body``, the automatic start: no ground truth read, the truth only scores) tracks each set
 with the silhouettes alone and with 001's edge and foreground terms added, the edges from the
 videos' frames (Canny), and prints the mean joint error (mm) of each seed.
 """
@@ -26,9 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.image import fit_background, subtract_background
-from jaxtrack.io import MultiViewVideo, load_sequence
+from jaxtrack.io import MultiViewVideo, load_keypoints, load_sequence
 from jaxtrack.manifold import load_model
-from jaxtrack.tracking import TrackingSpec, track_sequence
+from jaxtrack.tracking import TrackingSpec, motion_clearance, prepare_test, subject_body, track_sequence
 
 BASELINE = ("silhouette", {})
 DEFAULT_VARIANTS = {"+ edge + foreground": {}}
@@ -52,6 +52,30 @@ def punch_holes(rng, masks, count: float, radius: tuple[float, float]):
     return out
 
 
+def keypoint_body(film: str, truth, manifold, validation, frames: int = 4):
+    """The body calibrated (limb lengths and radii, ``body="calibrate"``) on the first ``frames``
+    frames of the film's 2-D keypoints alone (``keypoints.npz``: a detector's, noisy, some
+    dropped), started automatically, as ``track_sequence`` prepares a scene: no ground truth read."""
+    key = jax.random.key(0)
+    validation_subject = subject_body(validation, "the validation sequence", key=key)
+    layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
+    clearance = motion_clearance([validation], [validation_subject.poses], skeletons=[validation_subject.body.skeleton])
+    sequence = truth.replace(keypoints2d=load_keypoints(os.path.join(film, "keypoints.npz"))[0], skeleton_offsets=None,
+                             capsule_radii=None, pose=None, pose_layout=None, joints3d=None)
+    options = TrackingSpec(likelihood="keypoints", body="calibrate", start="auto").scene_options()
+    scene = prepare_test(sequence, "keypoints", key=key, frames=frames, calibration_frames=frames, say=say_body, start="auto",
+                         start_model=manifold,
+                         root_height=float(np.mean(validation_subject.poses[:, layout.index("root_z")])),
+                         ground_clearance=clearance, **options)
+    return np.asarray(scene.body.skeleton.offsets, np.float64), np.asarray(scene.body.radii, np.float64)
+
+
+def say_body(*message, **_) -> None:
+    """Print the pipeline's lines about the body (where it came from, a calibration's lengths)."""
+    if message and "body" in str(message[0]):
+        print("   ", *message, flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("film")
@@ -67,6 +91,11 @@ def main() -> None:
     parser.add_argument("--variant", nargs=2, action="append", metavar=("LABEL", "JSON"),
                         help="a silhouette+edge+foreground run with these likelihood options, e.g. "
                              "'gated' '{\"edges_near\": 3}' (repeatable; default: its defaults)")
+    parser.add_argument("--body", default="default", choices=("default", "joints", "keypoints"),
+                        help="the tracker's body: the default proportions; the skeleton fitted to the film's true joints, "
+                             "radii withheld (a subject whose skeleton is known: an oracle for the limb lengths); or limb "
+                             "lengths and radii calibrated on the first 4 frames of the film's 2-D keypoints alone "
+                             "(``keypoint_body``: no ground truth read)")
     parser.add_argument("--json")
     args = parser.parse_args()
     truth = load_sequence(os.path.join(args.film, "truth.npz"))
@@ -86,18 +115,23 @@ def main() -> None:
     sets = {k: v for k, v in sets.items() if args.sets is None or k in args.sets or k.startswith("parts missed")}
     manifold, header = load_model(args.model)
     validation = load_sequence(args.validation)
+    body, withheld = args.body, {}
+    if args.body == "keypoints":  # the calibrated body as the file's own, the truth's joints and poses withheld
+        offsets, radii = keypoint_body(args.film, truth, manifold, validation)
+        body, withheld = "auto", {"skeleton_offsets": offsets, "capsule_radii": radii, "joints3d": None, "pose": None,
+                                  "pose_layout": None}
     variants = {"silhouettes alone": BASELINE}
     variants.update({k: ("silhouette+edge+foreground", json.loads(v) if isinstance(v, str) else v)
                      for k, v in (args.variant or DEFAULT_VARIANTS.items())})
     rows = []
     for label, masks in sets.items():
         iou = float(np.mean((masks & true).sum(axis=(2, 3)) / (masks | true).sum(axis=(2, 3))))
-        sequence = truth.replace(silhouettes=masks.astype(np.uint8), images=frames)
+        sequence = truth.replace(silhouettes=masks.astype(np.uint8), images=frames, **withheld)
         for name, (likelihood, options) in variants.items():
-            spec = TrackingSpec(likelihood=likelihood, likelihood_options=options, body="default", start="auto")
+            spec = TrackingSpec(likelihood=likelihood, likelihood_options=options, body=body, start="auto")
             for seed in args.seeds:
                 _, joints, _ = track_sequence(sequence, manifold, header, "mrpf", validation, spec, seed=seed,
-                                              say=lambda *a, **k: None)
+                                              say=say_body)
                 error = 1000 * float(np.mean(np.linalg.norm(np.asarray(joints) - truth.joints3d[: len(joints)], axis=-1)))
                 rows.append({"silhouettes": label, "iou": iou, "run": name, "likelihood": likelihood, "options": options,
                              "seed": seed, "error_mm": error})
