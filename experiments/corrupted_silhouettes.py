@@ -55,7 +55,9 @@ def punch_holes(rng, masks, count: float, radius: tuple[float, float]):
 def keypoint_body(film: str, truth, manifold, validation, frames: int = 4):
     """The body calibrated (limb lengths and radii, ``body="calibrate"``) on the first ``frames``
     frames of the film's 2-D keypoints alone (``keypoints.npz``: a detector's, noisy, some
-    dropped), started automatically, as ``track_sequence`` prepares a scene: no ground truth read."""
+    dropped), started automatically, as ``track_sequence`` prepares a scene (the validation take
+    the donor whose proportions and clavicles centre the calibration's prior): no ground truth
+    read."""
     key = jax.random.key(0)
     validation_subject = subject_body(validation, "the validation sequence", key=key)
     layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
@@ -66,7 +68,8 @@ def keypoint_body(film: str, truth, manifold, validation, frames: int = 4):
     scene = prepare_test(sequence, "keypoints", key=key, frames=frames, calibration_frames=frames, say=say_body, start="auto",
                          start_model=manifold,
                          root_height=float(np.mean(validation_subject.poses[:, layout.index("root_z")])),
-                         ground_clearance=clearance, **options)
+                         ground_clearance=clearance, donors=[("the validation sequence", validation_subject, validation.subject)],
+                         **options)
     return np.asarray(scene.body.skeleton.offsets, np.float64), np.asarray(scene.body.radii, np.float64)
 
 

@@ -691,8 +691,12 @@ def _body_arguments(parser, whose: str) -> None:
                              "default body; calibrate: limb lengths and radii always fitted to the first frames' silhouettes")
     parser.add_argument("--calibrate-body", action="store_true", help="the same as --body calibrate")
     parser.add_argument("--height", type=float, metavar="M",
-                        help="the subject's standing height in metres: the body calibration's prior (the default proportions "
+                        help="the subject's standing height in metres: the body calibration's prior (the reference proportions "
                              "scaled to it)")
+    parser.add_argument("--body-prior", choices=("motion", "proportions", "default"), default="motion",
+                        help="what centres a body calibration's prior: motion (default): the proportions and clavicle posture "
+                             "of the motion model's subjects (the validation and training takes); proportions: their "
+                             "proportions, the clavicles at rest; default: the default body's proportions (docs/body.md)")
 
 
 def load_plugins(argv) -> None:
@@ -1054,7 +1058,8 @@ def _spec_fields(args) -> dict:
     return {
         "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood, "likelihood_options": _likelihood_options(args),
         "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
-        "body": _body_choice(args), "height": args.height, "refine_body": args.refine_body, "fit_radii": args.fit_radii,
+        "body": _body_choice(args), "height": args.height, "body_prior": args.body_prior, "refine_body": args.refine_body,
+        "fit_radii": args.fit_radii,
         "resolution": args.resolution,
         "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
         "velocity": args.velocity, "residual": args.residual, "residual_decay": args.residual_decay,

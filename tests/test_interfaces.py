@@ -106,7 +106,8 @@ def test_the_tracking_spec_is_validated_once_and_read_by_the_experiment():
     assert isinstance(config, TrackingSpec) and config.spec == spec
     assert config.manifold_specs == (("gpdm", 2),)
     for bad, match in (({"budget": 0}, "positive integer"), ({"pixel_samples": 2}, "pixel_samples"),
-                       ({"body": "mine"}, "body must be one of"), ({"height": 9.0}, "height"),
+                       ({"body": "mine"}, "body must be one of"), ({"body_prior": "mine"}, "body_prior must be one of"),
+                       ({"height": 9.0}, "height"),
                        ({"likelihood": "nope"}, "nope"), ({"likelihood_options": {"colour": 1}}, "takes no option"),
                        ({"manifold": "pca"}, "manifold must be one of"), ({"residual": -1.0}, "residual"),
                        ({"fit_optimiser": "adam"}, "fit_optimiser"), ({"resolution": (80, 0)}, "resolution")):

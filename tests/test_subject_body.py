@@ -236,6 +236,41 @@ def test_prepare_test_says_what_it_chose(other_subject_scene, capsys):
     _, full, _ = other_subject_scene
     scene = prepare_test(full, "x.npz", key=jax.random.key(0), pixel_samples="auto", say=print)
     assert scene.pixel_samples is None and "40x30 images: the silhouette likelihood scores every pixel" in capsys.readouterr().out
+    with pytest.raises(ValueError, match=r"calibration_prior must be one of \('motion', 'proportions', 'default'\)"):
+        prepare_test(full, "x.npz", key=jax.random.key(0), calibration_prior="mine")
+
+
+def test_a_calibration_takes_its_prior_from_the_motion_models_subject(other_subject_scene, capsys):
+    """``prepare_test`` calibrating from keypoints: the limbs' prior centred on the donors' lengths
+    and the clavicles held at their mean posture (``calibration_prior="motion"``), the proportions
+    alone, or the default body's (as without donors)."""
+    from jaxtrack.body import LIMB_SEGMENTS
+    from jaxtrack.tracking import SubjectBody, motion_subjects_prior
+
+    _, full, _ = other_subject_scene
+    scene = full.replace(keypoints2d=detect_keypoints(jax.random.key(1), full.joints3d, full.rig(), DetectorNoise(noise_px=0.5)))
+    clavicles = [i for i, n in enumerate(humaneva_body().skeleton.pose_layout) if "clavicle" in n]
+    posture = np.zeros((6, 32))
+    posture[:, clavicles] = [0.35, -0.1, 0.2, -0.15]
+    donor = SubjectBody(humaneva_body({**DEFAULT_LIMB_LENGTHS, "forearm": 0.21, "spine": 0.46}, dtype=jnp.float64), "file",
+                        poses=posture)
+    lengths, _ = motion_subjects_prior([("donor", donor, None)])
+
+    def calibration(prior):
+        return prepare_test(scene, "x.npz", key=jax.random.key(0), likelihood="keypoints", body="calibrate", frames=4,
+                            donors=[("donor", donor, None)], calibration_prior=prior, say=print).body_calibration
+
+    motion_prior = calibration("motion")
+    assert "the proportions of the motion model's subject, their clavicles' posture held" in capsys.readouterr().out
+    np.testing.assert_allclose(motion_prior.reference_lengths, [lengths[n] for n in LIMB_SEGMENTS], rtol=1e-6)
+    np.testing.assert_allclose(motion_prior.neutral_pose, posture[0])
+    np.testing.assert_allclose(motion_prior.poses_before[:, clavicles], np.broadcast_to(posture[0, clavicles], (4, 4)))
+    proportions = calibration("proportions")
+    np.testing.assert_allclose(proportions.reference_lengths, motion_prior.reference_lengths)
+    assert proportions.neutral_pose is None and np.all(proportions.poses_before[:, clavicles] == 0)
+    default = calibration("default")
+    np.testing.assert_allclose(default.reference_lengths, [DEFAULT_LIMB_LENGTHS[n] for n in LIMB_SEGMENTS], rtol=1e-6)
+    assert default.neutral_pose is None
 
 
 def test_gle_with_one_repetition_falls_back_to_its_temporal_graph():
@@ -285,12 +320,58 @@ def test_calibration_refuses_bad_settings_before_fitting(other_subject_scene):
     with pytest.raises(ValueError, match="floor_band must be a reach on the floor in metres"):
         calibrate_body(likelihood, motion.pose[:2], observed, floor_band=-0.45)
     limbs = dict(DEFAULT_LIMB_LENGTHS)
-    with pytest.raises(ValueError, match="give height or prior_lengths, not both"):
-        calibrate_body(likelihood, motion.pose[:2], observed, height=1.75, prior_lengths=limbs)
+    with pytest.raises(ValueError, match=r"neutral_pose must be a finite pose of shape \(32,\)"):
+        calibrate_body(likelihood, motion.pose[:2], observed, neutral_pose=np.zeros(31))
+    with pytest.raises(ValueError, match=r"neutral_pose must be a finite pose"):
+        calibrate_body(likelihood, motion.pose[:2], observed, neutral_pose=np.full(32, np.nan))
     with pytest.raises(ValueError, match="prior_lengths must give every limb"):
         calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={**limbs, "shin": 0.0})
     with pytest.raises(ValueError, match="prior_lengths must give every limb"):
         calibrate_body(likelihood, motion.pose[:2], observed, prior_lengths={k: v for k, v in limbs.items() if k != "neck"})
+
+
+def test_the_limb_prior_takes_given_proportions_and_scales_them_to_a_height():
+    """``limb_prior_centre``: the start's lengths; ``prior_lengths`` in their place; with a height,
+    the default proportions at it, or the given ones scaled by it over their ``stature``."""
+    from jaxtrack.body import LIMB_SEGMENTS, limb_lengths_for_height, stature
+    from jaxtrack.likelihood import limb_prior_centre
+
+    names = tuple(LIMB_SEGMENTS)
+    start = np.linspace(0.1, 0.5, len(names))
+    given = {n: 0.9 * DEFAULT_LIMB_LENGTHS[n] for n in names}
+    given["forearm"] = 0.2  # a motion-capture subject's short forearm
+    np.testing.assert_array_equal(limb_prior_centre(names, start, None, None), start)
+    np.testing.assert_allclose(limb_prior_centre(names, start, None, given), [given[n] for n in names])
+    at_height = limb_prior_centre(names, start, 1.80, None)
+    np.testing.assert_allclose(at_height, [limb_lengths_for_height(1.80)[n] for n in names])
+    scaled = limb_prior_centre(names, start, 1.80, given)  # as limb_lengths_for_height scales the default's
+    np.testing.assert_allclose(scaled, [given[n] * 1.80 / stature(given) for n in names])
+    assert scaled[names.index("forearm")] / scaled[names.index("upper_arm")] == pytest.approx(0.2 / given["upper_arm"])
+    np.testing.assert_allclose(limb_prior_centre(names, start, 1.80, DEFAULT_LIMB_LENGTHS), at_height)
+    with pytest.raises(ValueError, match="prior_lengths must give every limb"):
+        limb_prior_centre(names, start, 1.80, {**given, "shin": -1.0})
+
+
+def test_the_motion_subjects_prior_is_their_geometric_mean_body_and_mean_posture():
+    """``motion_subjects_prior``: the donors with a skeleton of their own give the limb lengths'
+    geometric mean and their frames' mean pose; a donor on the default body gives nothing."""
+    from jaxtrack.tracking import SubjectBody, motion_subjects_prior
+
+    short = {**DEFAULT_LIMB_LENGTHS, "forearm": 0.20, "spine": 0.45}
+    long = {limb: 1.1 * v for limb, v in DEFAULT_LIMB_LENGTHS.items()}
+    rng = np.random.default_rng(0)
+    poses_a, poses_b = rng.normal(size=(3, 32)), rng.normal(size=(5, 32))
+    donors = [("a", SubjectBody(humaneva_body(short), "file", poses=poses_a), "s1"),
+              ("b", SubjectBody(humaneva_body(long), "fitted to joints", poses=poses_b), "s2"),
+              ("c", SubjectBody(humaneva_body(), "default"), None)]
+    lengths, posture = motion_subjects_prior(donors)
+    for limb in DEFAULT_LIMB_LENGTHS:
+        assert lengths[limb] == pytest.approx(np.sqrt(short[limb] * long[limb]), rel=1e-5), limb
+    np.testing.assert_allclose(posture, np.concatenate([poses_a, poses_b]).mean(axis=0))
+    assert motion_subjects_prior(donors[2:]) == (None, None)
+    assert motion_subjects_prior(()) == (None, None)
+    lengths, posture = motion_subjects_prior([("a", SubjectBody(humaneva_body(short), "file"), None)])
+    assert lengths["forearm"] == pytest.approx(0.20, rel=1e-5) and posture is None
 
 
 @pytest.mark.slow  # two calibrations compiled: 20-30 s on 2 cores
@@ -310,6 +391,16 @@ def test_keypoints_enter_the_body_calibration_once_whatever_its_data_weight(othe
     np.testing.assert_allclose(once.lengths_after, weighted.lengths_after, rtol=1e-6)
     assert np.max(np.abs(once.lengths_after - once.lengths_before)) > 1e-3  # it did fit
     assert weighted.cost_after > 0.5 and weighted.cues == "all"  # not refused for a cost on another scale
+    # the clavicles start at, and are held near, a given posture (a motion-capture subject's raised ones)
+    clavicles = [3 + i for i, n in enumerate(body.skeleton.dof_names) if "clavicle" in n]  # after the root's x, y, z
+    assert len(clavicles) == 4 and all("clavicle" in body.skeleton.pose_layout[i] for i in clavicles)
+    posture = np.zeros(body.skeleton.num_dofs)
+    posture[clavicles] = [0.35, -0.1, 0.2, -0.15]
+    held = calibrate_body(points, start, observed, steps=20, neutral_pose=posture)[2]
+    np.testing.assert_array_equal(held.poses_before[:, clavicles], np.broadcast_to(posture[clavicles], (2, 4)))
+    assert np.max(np.abs(held.poses_after[:, clavicles] - posture[clavicles])) < 0.1
+    assert held.neutral_pose is not None and once.neutral_pose is None
+    np.testing.assert_array_equal(once.poses_before[:, clavicles], 0.0)  # at rest without one
     with pytest.raises(ValueError, match="data_weight must be a positive number"):
         calibrate_body(make_keypoint_likelihood(body, rig, dtype=jnp.float64), start, observed, data_weight=0.0)
     silhouettes = make_silhouette_likelihood(body, rig, scale=100.0, window=None)

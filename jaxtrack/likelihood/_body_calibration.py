@@ -61,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_lengths_for_height
+from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_lengths_for_height, stature
 from ..errors import ConfigurationError
 from ._base import AbstractLikelihood
 from ._calibration import ShapeCalibration, symmetric_groups
@@ -96,6 +96,8 @@ class BodyCalibration(NamedTuple):
         cues: what the body was fitted to: "all" (the whole likelihood), or "keypoints" (its 2-D
             keypoints alone, where the whole likelihood's calibration was refused: set by
             ``tracking.prepare_test``).
+        neutral_pose: (D,) the pose whose neutral dofs centred their prior (``calibrate_body``'s
+            ``neutral_pose``), or None (0, the rest posture); a second pass keeps it.
     """
 
     limb_names: tuple[str, ...]
@@ -112,6 +114,7 @@ class BodyCalibration(NamedTuple):
     trace: np.ndarray
     height: float | None
     cues: str = "all"
+    neutral_pose: np.ndarray | None = None
 
     def summary(self) -> dict:
         """For results.json: lengths and radii (mm) before and after, costs, height."""
@@ -175,6 +178,7 @@ def calibrate_body(
     max_cost: float | None = MAX_COST,
     neutral_dofs: tuple[str, ...] | None = None,
     neutral_sd: float = 0.1,
+    neutral_pose=None,
     edge_factor: float = 0.5,
     floor_band: float | None = FLOOR_BAND_RADIUS,
 ):
@@ -188,11 +192,14 @@ def calibrate_body(
         observations: the F frames' observations, a leading F axis on every leaf (e.g. (F, C,
             H, W) silhouettes, or a ``PixelSample``).
         height: the subject's standing height in metres: the limb lengths' prior is then the
-            default proportions at that height (tighter); None: the starting body's lengths.
+            default proportions (or ``prior_lengths``') at that height (tighter); None: the starting
+            body's lengths.
         prior_lengths: the limbs' prior centre (metres, by ``body.LIMB_SEGMENTS``' names, every
             limb) instead of the starting body's lengths, with the sd ``scale_sd`` on their common
             scale: a second pass started at a first pass's body keeps the first pass's prior
-            (``tracking.refine_body``). Not with ``height``.
+            (``tracking.refine_body``), and a first pass takes the proportions of the motion model's
+            subject (``tracking.prepare_test``). With ``height``: these proportions scaled to the
+            height (``body.stature``), with the sd ``scale_sd_height``.
         steps, learning_rate: Adam on the whitened parameters.
         scale_sd, scale_sd_height: prior sd of the common log scale of every limb, without and
             with a stated height.
@@ -206,6 +213,10 @@ def calibrate_body(
             solved on another skeleton bends to reach the person's joints. None: every dof whose
             name holds ``clavicle`` (module docstring).
         neutral_sd: their prior sd, radians.
+        neutral_pose: (D,) a pose whose values of the neutral dofs start them and centre their prior
+            instead of 0: the posture the tracker's motion model holds them in (e.g. the mean of its
+            training poses: a motion-capture convention puts the thorax below the shoulders, the
+            clavicles then raised 0.15-0.35 rad; docs/body.md, "The motion model's subject").
         edge_factor: every term with a soft edge (an ``edge_width``: the silhouettes) is fitted with
             its edge this many times as wide (module docstring); the returned likelihood keeps its own.
         floor_band: with a ``GroundPlanePrior`` in the likelihood (the floor then holds the ankles),
@@ -250,30 +261,23 @@ def calibrate_body(
         raise ValueError(f"edge_factor must be in (0, 1], got {edge_factor}")
     if floor_band is not None and not (np.isfinite(floor_band) and 0 < floor_band <= 2):
         raise ValueError(f"floor_band must be a reach on the floor in metres, in (0, 2], or None; got {floor_band}")
-    if height is not None and prior_lengths is not None:
-        raise ValueError("give height or prior_lengths, not both (a height sets the prior's centre)")
     if height is not None:
         height = check_height(height)
-        reference = np.array([limb_lengths_for_height(height)[n] for n in names])
-        sd_scale = scale_sd_height
-    elif prior_lengths is not None:
-        missing = sorted(set(names) - set(prior_lengths))
-        reference = np.array([float(prior_lengths.get(n, np.nan)) for n in names])
-        if missing or sorted(set(prior_lengths) - set(names)) or not np.all(np.isfinite(reference) & (reference > 0)):
-            raise ValueError(f"prior_lengths must give every limb ({', '.join(names)}) a positive length in metres, got "
-                             f"{dict(prior_lengths)}")
-        sd_scale = scale_sd
-    else:
-        reference, sd_scale = start_lengths, scale_sd
+    reference = limb_prior_centre(names, start_lengths, height, prior_lengths)
+    sd_scale = scale_sd if height is None else scale_sd_height
     groups = symmetric_groups(body.capsule_names)
     log_radii = np.log(np.asarray(body.radii, np.float64))
     radius0 = np.array([log_radii[groups == g].mean() for g in range(groups.max() + 1)])
     pose_sd = np.full(D, pose_sd_rad)
     pose_sd[:3] = pose_sd_m
     neutral = _neutral_columns(body.skeleton, neutral_dofs)
+    if neutral_pose is not None:
+        neutral_pose = np.asarray(neutral_pose, np.float64)
+        if neutral_pose.shape != (D,) or not np.all(np.isfinite(neutral_pose)):
+            raise ValueError(f"neutral_pose must be a finite pose of shape ({D},), got shape {neutral_pose.shape}")
     if neutral.size:
         poses = poses.copy()
-        poses[:, neutral] = 0.0
+        poses[:, neutral] = 0.0 if neutral_pose is None else neutral_pose[neutral]
         pose_sd[neutral] = neutral_sd
     dtype = body.radii.dtype
     cast = lambda a: jnp.asarray(a, dtype)  # noqa: E731
@@ -312,9 +316,28 @@ def calibrate_body(
         limb_names=names, lengths_before=start_lengths, lengths_after=lengths_after, reference_lengths=reference,
         capsule_names=body.capsule_names, radii_before=np.exp(log_radii), radii_after=np.asarray(new_body.radii, np.float64),
         poses_before=poses, poses_after=np.asarray(fitted["pose"], np.float64), cost_before=float(before), cost_after=float(after),
-        trace=np.asarray(trace), height=height,
+        trace=np.asarray(trace), height=height, neutral_pose=neutral_pose,
     )
     return with_body(likelihood, new_body), np.asarray(fitted["pose"], np.float64), report
+
+
+def limb_prior_centre(names, start_lengths, height: float | None, prior_lengths) -> np.ndarray:
+    """(8,) the limb lengths' prior centre (metres, in ``names``' order): ``prior_lengths`` or the
+    start's lengths; with a ``height``, the default proportions at it
+    (``body.limb_lengths_for_height``), or ``prior_lengths`` scaled the same way (by the height over
+    their ``body.stature``)."""
+    reference = np.asarray(start_lengths, np.float64)
+    if prior_lengths is not None:
+        missing = sorted(set(names) - set(prior_lengths))
+        reference = np.array([float(prior_lengths.get(n, np.nan)) for n in names])
+        if missing or sorted(set(prior_lengths) - set(names)) or not np.all(np.isfinite(reference) & (reference > 0)):
+            raise ValueError(f"prior_lengths must give every limb ({', '.join(names)}) a positive length in metres, got "
+                             f"{dict(prior_lengths)}")
+    if height is None:
+        return reference
+    if prior_lengths is None:
+        return np.array([limb_lengths_for_height(height)[n] for n in names])
+    return reference * (height / stature(dict(zip(names, reference))))
 
 
 def _sharpened(likelihood, factor: float):

@@ -67,9 +67,11 @@ from ._start import root_guess as root_guess
 from ._start import triangulate as triangulate
 from ._subject import BODY_CHOICES as BODY_CHOICES
 from ._subject import BODY_SOURCES as BODY_SOURCES
+from ._subject import CALIBRATION_PRIORS as CALIBRATION_PRIORS
 from ._subject import SubjectBody as SubjectBody
 from ._subject import check_offsets_match_joints as check_offsets_match_joints
 from ._subject import limb_lengths_of as limb_lengths_of
+from ._subject import motion_subjects_prior as motion_subjects_prior
 from ._subject import subject_body as subject_body
 from ._video_input import VideoInput as VideoInput
 from ._video_input import sequence_from_video as sequence_from_video

@@ -69,7 +69,7 @@ from ._refine_body import refine_frame_count, spread_frames, track_and_refine_bo
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
-from ._subject import SubjectBody, limb_lengths_of, subject_body
+from ._subject import CALIBRATION_PRIORS, SubjectBody, limb_lengths_of, motion_subjects_prior, subject_body
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
@@ -365,16 +365,21 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None,
                  likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None,
                  start: str = "truth", start_model=None, root_height: float | None = None,
-                 start_search: StartSearch | None = None, fit_radii: bool | None = None) -> TestScene:
+                 start_search: StartSearch | None = None, fit_radii: bool | None = None,
+                 calibration_prior: str = "motion") -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames (at most the sequence's), all when None).
 
     The body (``subject_body``): ``body="auto"`` takes the file's skeleton, else the one fitted
     to its ``joints3d``, else that of a ``donors`` take of the same ``subject``, else calibrates
-    the default (or ``height``'s proportions) from the first ``calibration_frames`` frames'
-    silhouettes (``likelihood.calibrate_body``: limb lengths, radii and those frames' poses,
-    from the given start pose, the feet kept out of the floor by the ground plane's prior at
-    ``ground_clearance``, default ``CALIBRATION_CLEARANCE``); ``"calibrate"`` always calibrates, ``"default"`` never (the
+    the default from the first ``calibration_frames`` frames' silhouettes
+    (``likelihood.calibrate_body``: limb lengths, radii and those frames' poses, from the given
+    start pose, the feet kept out of the floor by the ground plane's prior at
+    ``ground_clearance``, default ``CALIBRATION_CLEARANCE``), the limb lengths' prior centred on
+    the ``donors``' proportions (the motion model's subjects, ``motion_subjects_prior``; without
+    donors, the default's), scaled to ``height`` when it is given, and the clavicles held at the
+    donors' mean posture (``calibration_prior="motion"``; ``"proportions"``: the clavicles at
+    rest; ``"default"``: neither, as without donors); ``"calibrate"`` always calibrates, ``"default"`` never (the
     default body, poses solved on it), ``"joints"`` fits to the joints even over a file's
     skeleton. ``fit_radii``: the capsule radii fitted to the silhouettes of ``RADII_FRAMES`` frames
     spread over the scene at their ground-truth poses, the skeleton kept (``likelihood.fit_radii``);
@@ -419,6 +424,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         raise ValueError(f"pixel_samples must be a whole number, 'auto' or None, got {pixel_samples!r}")
     if start not in START_CHOICES:
         raise ValueError(f"start must be one of {START_CHOICES}, got {start!r}")
+    if calibration_prior not in CALIBRATION_PRIORS:
+        raise ValueError(f"calibration_prior must be one of {CALIBRATION_PRIORS}, got {calibration_prior!r}")
     if start == "auto" and (start_model is None or root_height is None):
         raise ValueError("start='auto' searches a manifold's latent space: give start_model and root_height")
     resolved = subject_body(sequence, name, key=key, choice=body, donors=donors, dtype=TRACKING_DTYPE)
@@ -494,14 +501,21 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             f"{'' if height is None else f' (height {height:g} m)'}")
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
         calibration_inputs = (np.repeat(initial_pose[None], count, axis=0), jax.tree.map(lambda x: jnp.asarray(x[:count]), observations))
+        prior_lengths, posture = motion_subjects_prior(donors) if calibration_prior != "default" else (None, None)
+        posture = posture if calibration_prior == "motion" else None
+        if prior_lengths is not None:
+            say(f"{name}: the limb lengths' prior has the proportions of the motion model's subject"
+                f"{'s' if len(donors) > 1 else ''}" + (", their clavicles' posture held" if posture is not None else "")
+                + " (docs/body.md)")
+        calibration_options = {"height": height, "prior_lengths": prior_lengths, "neutral_pose": posture}
         try:
-            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, height=height)
+            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, **calibration_options)
         except ConfigurationError as err:
             failure, alone = err, keypoint_terms(likelihood)
             if alone is not None:  # the joints' own cue, whatever the person's shape (docs/body.md)
                 print(f"warning: {name}: {err}; calibrating from the 2-D keypoints alone", file=sys.stderr)
                 try:
-                    calibrated, fitted_poses, calibration = calibrate_body(alone + floor, *calibration_inputs, height=height)
+                    calibrated, fitted_poses, calibration = calibrate_body(alone + floor, *calibration_inputs, **calibration_options)
                     calibrated, calibration = with_body(likelihood, body_of(calibrated)), calibration._replace(cues="keypoints")
                     failure = None
                 except ConfigurationError as second:

@@ -21,7 +21,7 @@ from ..likelihood import DEFAULT_LIKELIHOOD, get_likelihood
 from ..manifold import DEFAULT_OPTIMISER, OPTIMISERS, manifold_kinds
 from ._registry import GRADIENT_COST, Budget, TrackerRecipe, get_tracker
 from ._start import START_CHOICES
-from ._subject import BODY_CHOICES
+from ._subject import BODY_CHOICES, CALIBRATION_PRIORS
 
 
 def _positive_int(value) -> bool:
@@ -70,6 +70,10 @@ class TrackingSpec:
             first frames' silhouettes, ``likelihood.calibrate_body``).
         height: the test subjects' standing height in metres, the calibration's prior (None: the
             default proportions, loosely).
+        body_prior: what centres a calibration's prior (``tracking.CALIBRATION_PRIORS``):
+            "motion" (the motion model's subjects' proportions and clavicle posture; the default),
+            "proportions" (their proportions, the clavicles at rest) or "default" (the default
+            body's proportions, the clavicles at rest); docs/body.md, "The motion model's subject".
         refine_body: where the body was calibrated from the images, calibrate it a second time on
             one tracker run's estimates at frames spread over the sequence (``tracking.refine_body``:
             the knees and elbows bend there, where the first frames hold them straight), then track
@@ -133,6 +137,7 @@ class TrackingSpec:
     pixel_samples: int | str | None = "auto"
     body: str = "auto"
     height: float | None = None
+    body_prior: str = "motion"
     refine_body: bool | None = None
     calibrate_shape: bool = False
     fit_radii: bool | None = None
@@ -162,6 +167,8 @@ class TrackingSpec:
             raise ConfigurationError(f"fit_radii must be True, False or None (by the file), got {self.fit_radii!r}")
         if self.body not in BODY_CHOICES:
             raise ConfigurationError(f"body must be one of {BODY_CHOICES}, got {self.body!r}")
+        if self.body_prior not in CALIBRATION_PRIORS:
+            raise ConfigurationError(f"body_prior must be one of {CALIBRATION_PRIORS}, got {self.body_prior!r}")
         if self.start not in START_CHOICES:
             raise ConfigurationError(f"start must be one of {START_CHOICES}, got {self.start!r}")
         if self.height is not None:
@@ -270,5 +277,6 @@ class TrackingSpec:
         images and the body)."""
         return {"likelihood_scale": self.likelihood_scale, "calibrate": self.calibrate_shape, "fit_radii": self.fit_radii,
                 "resolution": self.resolution,
-                "pixel_samples": self.pixel_samples, "body": self.body, "height": self.height, "likelihood": self.likelihood,
+                "pixel_samples": self.pixel_samples, "body": self.body, "height": self.height,
+                "calibration_prior": self.body_prior, "likelihood": self.likelihood,
                 "likelihood_options": dict(self.likelihood_options)}

@@ -51,6 +51,11 @@ when the file has a skeleton), ``"default"`` (the default body, poses solved on 
 ``"calibrate"`` (the default body or a stated height, its limb lengths and radii then fitted to
 the first frames' images: ``likelihood.calibrate_body``)."""
 
+CALIBRATION_PRIORS = ("motion", "proportions", "default")
+"""What centres a body calibration's prior (``prepare_test``, ``TrackingSpec.body_prior``): the motion
+model's subjects' proportions and clavicle posture, their proportions alone (the clavicles at rest), or
+the default body's proportions (``motion_subjects_prior``; docs/body.md, "The motion model's subject")."""
+
 # A file's skeleton contradicts its joints when a limb's length differs from the joints' median
 # segment length by more than both of these (the IK residual of real motion capture is 5-30 mm).
 CONTRADICTION_M = 0.03
@@ -125,6 +130,33 @@ def limb_lengths_of(body: BodyModel) -> dict[str, float]:
     lengths = np.linalg.norm(np.asarray(body.skeleton.offsets, np.float64), axis=1)
     index = {n: i for i, n in enumerate(body.skeleton.joint_names)}
     return {limb: float(np.mean([lengths[index[b]] for _, b in pairs])) for limb, pairs in LIMB_SEGMENTS.items()}
+
+
+def motion_subjects_prior(donors) -> tuple[dict[str, float] | None, np.ndarray | None]:
+    """What the motion model's subjects say about a body calibrated from images: their limb
+    lengths (the geometric mean over the ``donors`` with a skeleton of their own: file or fitted
+    to joints), and their mean pose (over every frame of those with poses), whose clavicles
+    ``likelihood.calibrate_body`` holds near (``neutral_pose``). ``(None, None)`` without such a
+    donor.
+
+    Why (docs/body.md, "The motion model's subject"): where a joint sits is a convention of the
+    motion capture (the thorax of the CMU and HDM05 conversions 51-55 mm below the shoulders, their
+    forearms 170-212 mm against the default's 260), and the tracker's poses come from the motion
+    model's takes, so the body is calibrated in their convention: the default proportions and a
+    rest clavicle put the spine 41 mm long and the forearm 48 mm long on CMU subject 35's
+    keypoints.
+
+    Args:
+        donors: ``(name, SubjectBody, subject)`` of the training and validation takes, as
+            ``subject_body`` takes them.
+    """
+    own = [donor for _, donor, _ in donors if donor.source in ("file", "fitted to joints")]
+    if not own:
+        return None, None
+    logs = np.array([[np.log(donor.limb_lengths[limb]) for limb in LIMB_SEGMENTS] for donor in own])
+    lengths = dict(zip(LIMB_SEGMENTS, np.exp(logs.mean(axis=0)).tolist()))
+    poses = [np.asarray(donor.poses, np.float64) for donor in own if donor.poses is not None]
+    return lengths, (np.concatenate(poses).mean(axis=0) if poses else None)
 
 
 def _radii(sequence: Sequence, body: BodyModel) -> BodyModel:
