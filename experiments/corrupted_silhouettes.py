@@ -28,7 +28,7 @@ import numpy as np
 from jaxtrack.image import fit_background, subtract_background
 from jaxtrack.io import MultiViewVideo, load_keypoints, load_sequence
 from jaxtrack.manifold import load_model
-from jaxtrack.tracking import TrackingSpec, motion_clearance, prepare_test, subject_body, track_sequence
+from jaxtrack.tracking import CALIBRATION_PRIORS, TrackingSpec, motion_clearance, prepare_test, subject_body, track_sequence
 
 BASELINE = ("silhouette", {})
 DEFAULT_VARIANTS = {"+ edge + foreground": {}}
@@ -52,12 +52,12 @@ def punch_holes(rng, masks, count: float, radius: tuple[float, float]):
     return out
 
 
-def keypoint_body(film: str, truth, manifold, validation, frames: int = 4):
+def keypoint_body(film: str, truth, manifold, validation, frames: int = 4, prior: str = "motion"):
     """The body calibrated (limb lengths and radii, ``body="calibrate"``) on the first ``frames``
     frames of the film's 2-D keypoints alone (``keypoints.npz``: a detector's, noisy, some
-    dropped), started automatically, as ``track_sequence`` prepares a scene (the validation take
-    the donor whose proportions and clavicles centre the calibration's prior): no ground truth
-    read."""
+    dropped), started automatically, as ``track_sequence`` prepares a scene, the validation take
+    the donor whose proportions and clavicles centre the calibration's prior as ``prior`` says
+    (``tracking.CALIBRATION_PRIORS``): no ground truth read."""
     key = jax.random.key(0)
     validation_subject = subject_body(validation, "the validation sequence", key=key)
     layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
@@ -69,7 +69,7 @@ def keypoint_body(film: str, truth, manifold, validation, frames: int = 4):
                          start_model=manifold,
                          root_height=float(np.mean(validation_subject.poses[:, layout.index("root_z")])),
                          ground_clearance=clearance, donors=[("the validation sequence", validation_subject, validation.subject)],
-                         **options)
+                         calibration_prior=prior, **options)
     return np.asarray(scene.body.skeleton.offsets, np.float64), np.asarray(scene.body.radii, np.float64)
 
 
@@ -99,6 +99,9 @@ def main() -> None:
                              "radii withheld (a subject whose skeleton is known: an oracle for the limb lengths); or limb "
                              "lengths and radii calibrated on the first 4 frames of the film's 2-D keypoints alone "
                              "(``keypoint_body``: no ground truth read)")
+    parser.add_argument("--body-prior", default="motion", choices=CALIBRATION_PRIORS,
+                        help="with --body keypoints: what centres the calibration's prior (default: %(default)s, the "
+                             "validation take's proportions and clavicle posture: the films' subject is the model's)")
     parser.add_argument("--json")
     args = parser.parse_args()
     truth = load_sequence(os.path.join(args.film, "truth.npz"))
@@ -120,7 +123,7 @@ def main() -> None:
     validation = load_sequence(args.validation)
     body, withheld = args.body, {}
     if args.body == "keypoints":  # the calibrated body as the file's own, the truth's joints and poses withheld
-        offsets, radii = keypoint_body(args.film, truth, manifold, validation)
+        offsets, radii = keypoint_body(args.film, truth, manifold, validation, prior=args.body_prior)
         body, withheld = "auto", {"skeleton_offsets": offsets, "capsule_radii": radii, "joints3d": None, "pose": None,
                                   "pose_layout": None}
     variants = {"silhouettes alone": BASELINE}

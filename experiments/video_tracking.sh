@@ -9,8 +9,9 @@
 # (r) the reference: the renderer's true silhouettes, started from the truth.
 # Every run tracks with BODY (default: the default body; "auto" calibrates it from the first
 # frames where the person is tall enough, and falls back to the default where that fails,
-# which makes runs differ in their body as well as their cue).
-# Env: CMU (converted takes, benchmarks/cmu_experiment.sh), OUT, FRAMES, SIZES, VIEWS, SEEDS, BODY.
+# which makes runs differ in their body as well as their cue), and BODY_PRIOR what centres a
+# calibration's prior (--body-prior; default: default; give each its own OUT).
+# Env: CMU (converted takes, benchmarks/cmu_experiment.sh), OUT, FRAMES, SIZES, VIEWS, SEEDS, BODY, BODY_PRIOR.
 set -euo pipefail
 CMU=${CMU:-/tmp/cmu}
 OUT=${OUT:-/tmp/video_study}
@@ -19,6 +20,7 @@ SIZES=${SIZES:-"160x120 320x240"}
 VIEWS=${VIEWS:-"4 3"}
 SEEDS=${SEEDS:-"0"}
 BODY=${BODY:-default}
+BODY_PRIOR=${BODY_PRIOR:-default}
 mkdir -p "$OUT"
 [ -f "$OUT/walk.eqx" ] || jaxtrack fit "$CMU/35_01.npz" "$CMU/35_02.npz" --model bc-gplvm --latent-dim 2 --out "$OUT/walk.eqx"
 for size in $SIZES; do
@@ -28,7 +30,7 @@ for size in $SIZES; do
     [ -f "$film/truth.npz" ] || jaxtrack scene "$CMU/35_29.npz" --rgb --video "$film" --frames "$FRAMES" --width "$w" --height "$h" --views "$views"
     cams=$(python -c "import json;print(' '.join('$film/'+c['name']+'.mp4' for c in json.load(open('$film/calibration.json'))['cameras']))")
     bgs=$(python -c "import json;print(' '.join('$film/background/'+c['name']+'.mp4' for c in json.load(open('$film/calibration.json'))['cameras']))")
-    common="--model $OUT/walk.eqx --validation $CMU/35_03.npz --method mrpf --chunk-frames 0 --body $BODY"
+    common="--model $OUT/walk.eqx --validation $CMU/35_03.npz --method mrpf --chunk-frames 0 --body $BODY --body-prior $BODY_PRIOR"
     for seed in $SEEDS; do
       run="$OUT/${size}_${views}_s${seed}_$BODY"
       [ -f "${run}_reference.npz" ] || jaxtrack track "$film/truth.npz" $common --seed "$seed" --out "${run}_reference.npz"

@@ -693,10 +693,11 @@ def _body_arguments(parser, whose: str) -> None:
     parser.add_argument("--height", type=float, metavar="M",
                         help="the subject's standing height in metres: the body calibration's prior (the reference proportions "
                              "scaled to it)")
-    parser.add_argument("--body-prior", choices=("motion", "proportions", "default"), default="motion",
-                        help="what centres a body calibration's prior: motion (default): the proportions and clavicle posture "
-                             "of the motion model's subjects (the validation and training takes); proportions: their "
-                             "proportions, the clavicles at rest; default: the default body's proportions (docs/body.md)")
+    parser.add_argument("--body-prior", choices=("default", "proportions", "motion"), default="default",
+                        help="what centres a body calibration's prior: default (the default): the default body's proportions; "
+                             "proportions: those of the motion model's subjects (the validation and training takes); motion: "
+                             "their proportions and clavicle posture, for a person who is the motion model's subject "
+                             "(docs/body.md)")
 
 
 def load_plugins(argv) -> None:

@@ -236,7 +236,7 @@ def test_prepare_test_says_what_it_chose(other_subject_scene, capsys):
     _, full, _ = other_subject_scene
     scene = prepare_test(full, "x.npz", key=jax.random.key(0), pixel_samples="auto", say=print)
     assert scene.pixel_samples is None and "40x30 images: the silhouette likelihood scores every pixel" in capsys.readouterr().out
-    with pytest.raises(ValueError, match=r"calibration_prior must be one of \('motion', 'proportions', 'default'\)"):
+    with pytest.raises(ValueError, match=r"calibration_prior must be one of \('default', 'proportions', 'motion'\)"):
         prepare_test(full, "x.npz", key=jax.random.key(0), calibration_prior="mine")
 
 

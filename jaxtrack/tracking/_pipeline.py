@@ -366,7 +366,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None,
                  start: str = "truth", start_model=None, root_height: float | None = None,
                  start_search: StartSearch | None = None, fit_radii: bool | None = None,
-                 calibration_prior: str = "motion") -> TestScene:
+                 calibration_prior: str = "default") -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
     ``frames`` frames (at most the sequence's), all when None).
 
@@ -376,10 +376,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     (``likelihood.calibrate_body``: limb lengths, radii and those frames' poses, from the given
     start pose, the feet kept out of the floor by the ground plane's prior at
     ``ground_clearance``, default ``CALIBRATION_CLEARANCE``), the limb lengths' prior centred on
-    the ``donors``' proportions (the motion model's subjects, ``motion_subjects_prior``; without
-    donors, the default's), scaled to ``height`` when it is given, and the clavicles held at the
-    donors' mean posture (``calibration_prior="motion"``; ``"proportions"``: the clavicles at
-    rest; ``"default"``: neither, as without donors); ``"calibrate"`` always calibrates, ``"default"`` never (the
+    the default proportions (``calibration_prior="default"``), or on the ``donors``' (the motion
+    model's subjects, ``motion_subjects_prior``: ``"proportions"``), the clavicles then at rest,
+    or held at the donors' mean posture as well (``"motion"``; docs/body.md, "The motion model's
+    subject"), scaled to ``height`` when it is given; ``"calibrate"`` always calibrates, ``"default"`` never (the
     default body, poses solved on it), ``"joints"`` fits to the joints even over a file's
     skeleton. ``fit_radii``: the capsule radii fitted to the silhouettes of ``RADII_FRAMES`` frames
     spread over the scene at their ground-truth poses, the skeleton kept (``likelihood.fit_radii``);

@@ -71,9 +71,10 @@ class TrackingSpec:
         height: the test subjects' standing height in metres, the calibration's prior (None: the
             default proportions, loosely).
         body_prior: what centres a calibration's prior (``tracking.CALIBRATION_PRIORS``):
-            "motion" (the motion model's subjects' proportions and clavicle posture; the default),
-            "proportions" (their proportions, the clavicles at rest) or "default" (the default
-            body's proportions, the clavicles at rest); docs/body.md, "The motion model's subject".
+            "default" (the default body's proportions, the clavicles at rest; the default),
+            "proportions" (the motion model's subjects' proportions, the clavicles at rest) or
+            "motion" (their proportions and clavicle posture: best where the person is the motion
+            model's subject, worse for others); docs/body.md, "The motion model's subject".
         refine_body: where the body was calibrated from the images, calibrate it a second time on
             one tracker run's estimates at frames spread over the sequence (``tracking.refine_body``:
             the knees and elbows bend there, where the first frames hold them straight), then track
@@ -137,7 +138,7 @@ class TrackingSpec:
     pixel_samples: int | str | None = "auto"
     body: str = "auto"
     height: float | None = None
-    body_prior: str = "motion"
+    body_prior: str = "default"
     refine_body: bool | None = None
     calibrate_shape: bool = False
     fit_radii: bool | None = None

@@ -51,10 +51,11 @@ when the file has a skeleton), ``"default"`` (the default body, poses solved on 
 ``"calibrate"`` (the default body or a stated height, its limb lengths and radii then fitted to
 the first frames' images: ``likelihood.calibrate_body``)."""
 
-CALIBRATION_PRIORS = ("motion", "proportions", "default")
-"""What centres a body calibration's prior (``prepare_test``, ``TrackingSpec.body_prior``): the motion
-model's subjects' proportions and clavicle posture, their proportions alone (the clavicles at rest), or
-the default body's proportions (``motion_subjects_prior``; docs/body.md, "The motion model's subject")."""
+CALIBRATION_PRIORS = ("default", "proportions", "motion")
+"""What centres a body calibration's prior (``prepare_test``, ``TrackingSpec.body_prior``): the default
+body's proportions (the default), the motion model's subjects' proportions (the clavicles at rest), or
+their proportions and clavicle posture (``motion_subjects_prior``; docs/body.md, "The motion model's
+subject": the last best for the model's own subject, worse for other people)."""
 
 # A file's skeleton contradicts its joints when a limb's length differs from the joints' median
 # segment length by more than both of these (the IK residual of real motion capture is 5-30 mm).
@@ -142,9 +143,11 @@ def motion_subjects_prior(donors) -> tuple[dict[str, float] | None, np.ndarray |
     Why (docs/body.md, "The motion model's subject"): where a joint sits is a convention of the
     motion capture (the thorax of the CMU and HDM05 conversions 51-55 mm below the shoulders, their
     forearms 170-212 mm against the default's 260), and the tracker's poses come from the motion
-    model's takes, so the body is calibrated in their convention: the default proportions and a
-    rest clavicle put the spine 41 mm long and the forearm 48 mm long on CMU subject 35's
-    keypoints.
+    model's takes, so the body can be calibrated in their convention: the default proportions and
+    a rest clavicle put the spine 41 mm long and the forearm 48 mm long on CMU subject 35's
+    keypoints, its own proportions and posture within 7 mm except the legs. Used where
+    ``prepare_test``'s ``calibration_prior`` asks for it (not by default: across people the
+    tracks were no better, docs/body.md).
 
     Args:
         donors: ``(name, SubjectBody, subject)`` of the training and validation takes, as
