@@ -23,12 +23,13 @@ demo's training and validation motion (subjects S1 and S2), then track each scen
   body is calibrated again on tracked frames spread over the sequence (``tracking.refine_body``),
   the start re-solved on the refined skeleton; every tracker then tracks with that body;
 - ``keypoints``: the file also carries 2-D keypoints (the true joints projected, N(0,
-  ``--keypoint-noise`` px) added, 10 % missing: a good detector); the body is calibrated from the
-  silhouettes and keypoints together (``likelihood="silhouette+keypoints"``), from the keypoints
-  alone where that is refused (``tracking.prepare_test``), then frame 0's joints solved on it for
-  the start; the trackers track the silhouettes alone with that body, as in the other conditions;
+  ``--keypoint-noise`` px) added, 10 % missing: a good detector); the body is calibrated with
+  ``likelihood="silhouette+keypoints"`` (``tracking.prepare_test``: the limb lengths from the
+  keypoints, then the radii from both cues, ``likelihood.calibrate_body_from_keypoints``; both cues
+  at once before 2026-12-06), then frame 0's joints solved on it for the start; the trackers track
+  the silhouettes alone with that body, as in the other conditions;
 - ``keypoints-refined``: ``keypoints``, then the second pass on a ``--refine-with`` run that
-  tracks both cues (``tracking.refine_body``, on the keypoints alone where the first pass was);
+  tracks both cues (``tracking.refine_body``, its lengths from the keypoints as the first pass's);
 - ``truth-calibrated``: the second pass (``tracking.refine_body``) run on the true body and the
   true poses, its prior centred on the truth: what a silhouette calibration gives when it starts
   at the right answer, the floor of every ``calibrated`` and ``refined`` run (docs/body.md, "The

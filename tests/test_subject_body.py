@@ -31,7 +31,9 @@ from jaxtrack.experiment import ExperimentConfig, run_experiment
 from jaxtrack.io import Sequence, load_sequence, save_sequence
 from jaxtrack.likelihood import (
     ObservationPart,
+    body_of,
     calibrate_body,
+    calibrate_body_from_keypoints,
     check_silhouettes,
     default_pixel_samples,
     keypoint_terms,
@@ -410,13 +412,52 @@ def test_keypoints_enter_the_body_calibration_once_whatever_its_data_weight(othe
     assert keypoint_terms(both).term is points and keypoint_terms(both + floor).term is points  # a scene's, with its floor
 
 
+def test_the_limb_lengths_come_from_the_keypoints_and_the_radii_from_every_cue(other_subject_scene):
+    """``calibrate_body_from_keypoints``: its lengths are a calibration on the keypoints alone (and the
+    floor's prior), held while the silhouettes fit the radii, which come nearer the subject's (20 %
+    thicker than the start), and the poses again; a refused second step keeps the keypoints' body
+    with its radii; no keypoints: ``calibrate_body`` itself."""
+    motion, full, _ = other_subject_scene
+    rig = default_rig(40, 30, dtype=jnp.float64)
+    body = humaneva_body(dtype=jnp.float64)
+    observed = {"silhouettes": jnp.asarray(np.moveaxis(check_silhouettes(full.silhouettes, rig)[:, :2], 0, 1)),
+                "keypoints": jnp.asarray(np.moveaxis(detect_keypoints(jax.random.key(0), full.joints3d[:2], rig,
+                                                                      DetectorNoise(noise_px=0.5)), 0, 1))}
+    start = np.asarray(motion.pose[:2], np.float64)
+    points = ObservationPart(make_keypoint_likelihood(body, rig, sigma_px=1.0, dtype=jnp.float64), "keypoints")
+    shapes = ObservationPart(make_silhouette_likelihood(body, rig, scale=100.0, window=None), "silhouettes")
+    floor = make_ground_prior(body.skeleton, 0.06)
+    fitted, poses, split = calibrate_body_from_keypoints(shapes + points + floor, start, observed, steps=20)
+    alone = calibrate_body(points + floor, start, observed, steps=20)[2]
+    assert split.cues == "keypoint lengths" and split.summary()["cues"] == "keypoint lengths"
+    np.testing.assert_allclose(split.lengths_after, alone.lengths_after, rtol=1e-9)
+    held = limb_lengths_of(body_of(fitted))
+    np.testing.assert_allclose([held[n] for n in split.limb_names], alone.lengths_after, rtol=1e-3)
+    np.testing.assert_allclose(split.poses_before, alone.poses_before)
+    np.testing.assert_allclose(poses, split.poses_after)
+    assert not np.allclose(poses, alone.poses_after)  # the silhouettes moved the poses again
+    true = np.asarray(motion.body.radii)
+    before, after = (np.mean(np.abs(np.log(r / true))) for r in (split.radii_before, split.radii_after))
+    assert after < 0.5 * before, (before, after)  # measured 0.18 -> 0.06
+    assert split.cost_after < split.cost_before
+    refused = calibrate_body_from_keypoints(shapes + points + floor, start, observed, steps=20, max_cost=1e-6)[2]
+    assert refused.cues == "keypoints"
+    np.testing.assert_allclose(refused.radii_after, split.radii_before, rtol=1e-6)
+    np.testing.assert_allclose(refused.lengths_after, alone.lengths_after, rtol=1e-9)
+    silhouettes_only = make_silhouette_likelihood(body, rig, scale=100.0, window=None)
+    one, two = (f(silhouettes_only, start, observed["silhouettes"], steps=5)[2]
+                for f in (calibrate_body_from_keypoints, calibrate_body))
+    assert one.cues == "all"
+    np.testing.assert_array_equal(one.lengths_after, two.lengths_after)
+
+
 @pytest.mark.slow  # two body calibrations at 160x120: 3-4 minutes on 2 cores
-def test_a_body_its_silhouettes_cannot_calibrate_is_calibrated_from_its_keypoints(capsys):
+def test_a_body_its_silhouettes_cannot_calibrate_takes_its_limb_lengths_from_its_keypoints(capsys):
     """The subject rendered by ``SolidBody`` (ellipsoids pinched at the joints, feet, an egg-shaped
     head: docs/body.md) with 1-pixel keypoints: calibrated from the silhouettes and keypoints
-    together its neck runs to 1.4 times its reference and is refused; ``prepare_test`` then
-    calibrates from the keypoints alone and says so (measured: every limb within 22 mm, the start
-    7.9 mm)."""
+    together its neck ran to 1.4 times its reference; ``prepare_test`` takes the limb lengths from
+    the keypoints alone and fits the radii to both (``calibrate_body_from_keypoints``), and says so;
+    the second pass does the same."""
     key = jax.random.key(0)
     motion = generate_motion("walk", SubjectStyle("X", limb_lengths=LIMB_FACTORS, radius_scale=1.2), num_frames=40, fps=60.0,
                              key=jax.random.fold_in(key, 500))
@@ -425,16 +466,17 @@ def test_a_body_its_silhouettes_cannot_calibrate_is_calibrated_from_its_keypoint
     scene = scene.replace(keypoints2d=detect_keypoints(jax.random.key(5), scene.joints3d, rig, DetectorNoise(noise_px=1.0)),
                           **dict.fromkeys(JOINT_KEYS))
     test = prepare_test(scene, "solid walk", key=key, frames=8, body="calibrate", likelihood="silhouette+keypoints",
-                        likelihood_options={"sigma_px": 1.0})
-    assert "calibrating from the 2-D keypoints alone" in capsys.readouterr().err
-    assert test.body_calibration.cues == "keypoints" and test.body_calibration.summary()["cues"] == "keypoints"
+                        likelihood_options={"sigma_px": 1.0}, say=print)
+    assert "the lengths from the keypoints, the radii from every cue" in capsys.readouterr().out
+    assert test.body_calibration.cues == "keypoint lengths"
+    assert not np.allclose(test.body_calibration.radii_after, test.body_calibration.radii_before)
     truth, fitted = limb_lengths_of(motion.body), limb_lengths_of(test.body)
     assert max(abs(fitted[k] - truth[k]) for k in truth) < 0.03
     assert test.start_error_mm <= 20.0
-    # the second pass keeps to the keypoints too (the silhouettes would pull the joints again)
+    # the second pass takes its lengths from the keypoints too (the silhouettes would pull the joints again)
     tracked = np.repeat(np.asarray(test.initial_pose, np.float64)[None], test.num_frames, axis=0)
     refined = refine_body(test, tracked, key=key, frames=4)
-    assert refined.body_calibration.cues == "keypoints"
+    assert refined.body_calibration.cues == "keypoint lengths"
     fitted = limb_lengths_of(refined.body)
     assert max(abs(fitted[k] - truth[k]) for k in truth) < 0.03
 

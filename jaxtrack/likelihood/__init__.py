@@ -34,6 +34,7 @@ from ._blobs import voxel_grid as voxel_grid
 from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of
 from ._body_calibration import calibrate_body as calibrate_body
+from ._body_calibration import calibrate_body_from_keypoints as calibrate_body_from_keypoints
 from ._body_calibration import fit_radii as fit_radii
 from ._body_calibration import limb_prior_centre as limb_prior_centre
 from ._body_calibration import with_body as with_body

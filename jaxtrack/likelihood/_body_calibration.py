@@ -63,11 +63,11 @@ import optax
 
 from ..body import LIMB_SEGMENTS, BodyModel, Skeleton, check_height, limb_lengths_for_height, stature
 from ..errors import ConfigurationError
-from ._base import AbstractLikelihood
+from ._base import AbstractLikelihood, SumLikelihood
 from ._calibration import ShapeCalibration, symmetric_groups
 from ._floor_band import FloorBandSilhouette
 from ._ground import GroundPlanePrior
-from ._keypoints import KeypointLikelihood
+from ._keypoints import KeypointLikelihood, keypoint_terms
 from ._sampled import SampledSilhouetteLikelihood
 from ._silhouette import SilhouetteLikelihood
 
@@ -93,9 +93,10 @@ class BodyCalibration(NamedTuple):
         cost_before, cost_after: ``-mean_f ln p(I_f | x_f) / scale`` at the start and the end.
         trace: (steps,) the MAP objective per step.
         height: the stated height (metres), or None.
-        cues: what the body was fitted to: "all" (the whole likelihood), or "keypoints" (its 2-D
-            keypoints alone, where the whole likelihood's calibration was refused: set by
-            ``tracking.prepare_test``).
+        cues: what the body was fitted to: "all" (the whole likelihood); "keypoint lengths" (the limb
+            lengths to its 2-D keypoints alone, the radii and poses then to the whole likelihood:
+            ``calibrate_body_from_keypoints``); or "keypoints" (the keypoints alone: where that
+            function's second step was refused).
         neutral_pose: (D,) the pose whose neutral dofs centred their prior (``calibrate_body``'s
             ``neutral_pose``), or None (0, the rest posture); a second pass keeps it.
     """
@@ -456,6 +457,65 @@ def _fit(likelihood, body, structure, observations, prior, sds, data_weight, u0,
 
     (u, _), (trace, costs) = jax.lax.scan(step, (u0, optimiser.init(u0)), None, length=steps)
     return u, trace, costs
+
+
+def calibrate_body_from_keypoints(likelihood: AbstractLikelihood, poses, observations, **options):
+    """The body calibrated in two steps where the likelihood observes 2-D keypoints beside another
+    cue (``silhouette+keypoints``): the limb lengths from the cue that marks the joints, the girth
+    from the one that draws the body.
+
+    1. ``calibrate_body`` on the keypoint terms alone (``keypoint_terms``) and the likelihood's priors
+       (a floor's): the limb lengths and the frames' poses.
+    2. ``calibrate_body`` on the whole likelihood from those poses, the limb lengths held at step 1's
+       (prior sd ``HELD_LENGTH_SD`` on their logs): the capsule radii, and the poses again (their
+       priors as in step 1; held at step 1's instead, the tracks were better on the motion model's
+       own subject and worse on two others: docs/body.md).
+
+    Fitted together, the silhouettes of a body whose shape is not the capsules' pull the joints where
+    the capsules' outline fits best: on the solid-bodied films the neck came out 53-86 mm long and the
+    spine 38-65 mm short, inside the plausible range, so nothing refused them (docs/body.md, "Limb
+    lengths from the keypoints, radii from the silhouettes").
+
+    Args:
+        likelihood, poses, observations: as ``calibrate_body``.
+        options: ``calibrate_body``'s settings for step 1 (``height``, ``prior_lengths``,
+            ``neutral_pose``, ...); step 2 takes them too, except the lengths' prior.
+
+    Returns:
+        ``(likelihood with the fitted body, fitted poses (F, D), BodyCalibration)``, its ``cues``
+        "keypoint lengths": the lengths, their prior centre and ``poses_before`` from step 1, the
+        radii, fitted poses, costs and trace from step 2 (its ``cost_before``: the whole
+        likelihood's at step 1's body and poses). Where step 2 is
+        refused, step 1's body with the starting radii, ``cues`` "keypoints". A likelihood
+        without keypoints, or with nothing else: ``calibrate_body``.
+
+    Raises:
+        ValueError: as ``calibrate_body``.
+        ConfigurationError: step 1 does not converge (``calibrate_body``'s checks).
+    """
+    alone = keypoint_terms(likelihood)
+    if alone is None:
+        return calibrate_body(likelihood, poses, observations, **options)
+    priors = tuple(term for term in _terms(likelihood) if not term.reads_observation)
+    fitted, fitted_poses, lengths = calibrate_body(SumLikelihood((alone, *priors)) if priors else alone, poses, observations,
+                                                   **options)
+    body = body_of(fitted)
+    kept = {key: value for key, value in options.items() if key not in ("height", "prior_lengths", "scale_sd", "proportion_sd")}
+    try:  # the lengths held where the keypoints put them; the poses as free as in step 1
+        whole, whole_poses, girth = calibrate_body(with_body(likelihood, body), fitted_poses, observations,
+                                                   prior_lengths=dict(zip(lengths.limb_names, lengths.lengths_after)),
+                                                   scale_sd=HELD_LENGTH_SD, proportion_sd=HELD_LENGTH_SD, **kept)
+    except ConfigurationError:
+        return with_body(likelihood, body), fitted_poses, lengths._replace(cues="keypoints")
+    return whole, whole_poses, lengths._replace(cues="keypoint lengths", radii_after=girth.radii_after, poses_after=whole_poses,
+                                                cost_before=girth.cost_before, cost_after=girth.cost_after, trace=girth.trace)
+
+
+def _terms(likelihood: AbstractLikelihood) -> tuple[AbstractLikelihood, ...]:
+    """The terms of a (nested) sum, in order; a likelihood that is no sum: itself."""
+    if isinstance(likelihood, SumLikelihood):
+        return tuple(t for term in likelihood.terms for t in _terms(term))
+    return (likelihood,)
 
 
 def fit_radii(likelihood: AbstractLikelihood, poses, observations, **options) -> tuple[AbstractLikelihood, ShapeCalibration]:

@@ -47,6 +47,7 @@ from ..likelihood import (
     SumLikelihood,
     body_of,
     calibrate_body,
+    calibrate_body_from_keypoints,
     calibrate_shape,
     check_silhouettes,
     default_pixel_samples,
@@ -296,6 +297,9 @@ CALIBRATION_FRAMES = 4  # frames the body calibration fits (the first ones, thei
 # adult's ankle joint stands 6-8 cm above the sole. Without the floor, foot shadows stretch the
 # shins (docs/body.md, "The floor band").
 CALIBRATION_CLEARANCE = 0.06
+# How the report of a calibrated body names what it was fitted to (``BodyCalibration.cues``).
+CUES_SAID = {"all": "", "keypoint lengths": " (the lengths from the keypoints, the radii from every cue)",
+             "keypoints": " (from the keypoints alone)"}
 
 
 # The person's height in pixels (median over the views, frame 0) under which ``body="auto"`` does
@@ -375,7 +379,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     the default from the first ``calibration_frames`` frames' silhouettes
     (``likelihood.calibrate_body``: limb lengths, radii and those frames' poses, from the given
     start pose, the feet kept out of the floor by the ground plane's prior at
-    ``ground_clearance``, default ``CALIBRATION_CLEARANCE``), the limb lengths' prior centred on
+    ``ground_clearance``, default ``CALIBRATION_CLEARANCE``; with 2-D keypoints beside the
+    silhouettes, ``likelihood.calibrate_body_from_keypoints``: the limb lengths from the keypoints,
+    the radii from every cue; where the keypoints' fit is refused, every cue at once), the limb lengths' prior centred on
     the default proportions (``calibration_prior="default"``), or on the ``donors``' (the motion
     model's subjects, ``motion_subjects_prior``: ``"proportions"``), the clavicles then at rest,
     or held at the donors' mean posture as well (``"motion"``; docs/body.md, "The motion model's
@@ -508,15 +514,20 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                 f"{'s' if len(donors) > 1 else ''}" + (", their clavicles' posture held" if posture is not None else "")
                 + " (docs/body.md)")
         calibration_options = {"height": height, "prior_lengths": prior_lengths, "neutral_pose": posture}
-        try:
-            calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, **calibration_options)
+        alone = keypoint_terms(likelihood)
+        try:  # with keypoints: the limb lengths from them, the radii from every cue (docs/body.md)
+            calibrated, fitted_poses, calibration = calibrate_body_from_keypoints(likelihood + floor, *calibration_inputs,
+                                                                                  **calibration_options)
+            if alone is not None and calibration.cues == "keypoints":
+                print(f"warning: {name}: fitting the capsule radii to the {' and '.join(recipe.observes)} did not converge; the "
+                      "limb lengths from the keypoints, the default radii", file=sys.stderr)
         except ConfigurationError as err:
-            failure, alone = err, keypoint_terms(likelihood)
-            if alone is not None:  # the joints' own cue, whatever the person's shape (docs/body.md)
-                print(f"warning: {name}: {err}; calibrating from the 2-D keypoints alone", file=sys.stderr)
+            failure = err
+            if alone is not None:  # the keypoints refused (too few detections): every cue together
+                print(f"warning: {name}: {err} (from the 2-D keypoints); calibrating from the {' and '.join(recipe.observes)} "
+                      "together", file=sys.stderr)
                 try:
-                    calibrated, fitted_poses, calibration = calibrate_body(alone + floor, *calibration_inputs, **calibration_options)
-                    calibrated, calibration = with_body(likelihood, body_of(calibrated)), calibration._replace(cues="keypoints")
+                    calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, **calibration_options)
                     failure = None
                 except ConfigurationError as second:
                     failure = second
@@ -531,7 +542,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         initial_pose = _start_pose(sequence, body_model, fitted_poses[0], key, start)
         say(f"{name}: calibrated limb lengths (mm): "
             + ", ".join(f"{n} {1000 * v:.0f}" for n, v in zip(calibration.limb_names, calibration.lengths_after))
-            + ("" if calibration.cues == "all" else f" (from the {calibration.cues} alone)")
+            + CUES_SAID[calibration.cues]
             + f"; cost {calibration.cost_before:.3f} -> {calibration.cost_after:.3f}")
     if "images" in recipe.observes and wanted:  # again, on the calibrated body
         likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))

@@ -26,7 +26,7 @@ from ..body import forward_kinematics, inverse_kinematics
 from ..camera import CameraRig
 from ..errors import ConfigurationError
 from ..filters import run_filter
-from ..likelihood import body_of, calibrate_body, keypoint_terms, make_ground_prior, with_body
+from ..likelihood import body_of, calibrate_body, calibrate_body_from_keypoints, keypoint_terms, make_ground_prior, with_body
 
 REFINE_FRAMES = 12  # frames of the second pass at 4 views of 160x120 or more (8 measured worse: docs/body.md)
 MAX_REFINE_FRAMES = 40  # the most frames a second pass fits (its cost grows with them)
@@ -98,7 +98,7 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
     picks = spread_frames(T, refine_frame_count(scene) if frames is None else frames)
     likelihood = scene.likelihood
     keypoints_alone = scene.body_calibration is not None and scene.body_calibration.cues == "keypoints"
-    if keypoints_alone:  # as the first pass, whose silhouettes were refused (tracking.prepare_test)
+    if keypoints_alone:  # as the first pass, whose radii's fit was refused (tracking.prepare_test)
         likelihood = keypoint_terms(likelihood) or likelihood
         if scene.ground_prior is not None:
             likelihood = likelihood + scene.ground_prior
@@ -108,7 +108,9 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
     calibration_options.setdefault("proportion_sd", REFINE_PROPORTION_SD)
     if scene.body_calibration is not None and scene.body_calibration.neutral_pose is not None:
         calibration_options.setdefault("neutral_pose", scene.body_calibration.neutral_pose)  # as the first pass held them
-    fitted, fitted_poses, report = calibrate_body(likelihood, poses[picks], observations, **calibration_options)
+    split = scene.body_calibration is not None and scene.body_calibration.cues == "keypoint lengths"
+    calibrate = calibrate_body_from_keypoints if split else calibrate_body  # the lengths from the keypoints again
+    fitted, fitted_poses, report = calibrate(likelihood, poses[picks], observations, **calibration_options)
     if keypoints_alone:
         report = report._replace(cues="keypoints")
     body = body_of(fitted)
