@@ -14,7 +14,8 @@ after frame). ``--sets`` keeps some of the first three sets; ``--variant`` adds 
 other options of the combined likelihood. Then MRPF (budget 500, the
 default body or another ``--body``, the automatic start: no ground truth read, the truth only scores) tracks each set
 with the silhouettes alone and with 001's edge and foreground terms added, the edges from the
-videos' frames (Canny), and prints the mean joint error (mm) of each seed.
+videos' frames (Canny), and prints the mean joint error (mm) of each seed (``--save-joints DIR``
+keeps each run's estimated joints).
 """
 
 import argparse
@@ -52,24 +53,30 @@ def punch_holes(rng, masks, count: float, radius: tuple[float, float]):
     return out
 
 
-def keypoint_body(film: str, truth, manifold, validation, frames: int = 4, prior: str = "motion"):
-    """The body calibrated (limb lengths and radii, ``body="calibrate"``) on the first ``frames``
-    frames of the film's 2-D keypoints alone (``keypoints.npz``: a detector's, noisy, some
-    dropped), started automatically, as ``track_sequence`` prepares a scene, the validation take
-    the donor whose proportions and clavicles centre the calibration's prior as ``prior`` says
-    (``tracking.CALIBRATION_PRIORS``): no ground truth read."""
+def keypoint_body(film: str, truth, manifold, validation, frames: int = 4, prior: str = "motion", silhouettes=None):
+    """The body calibrated (``body="calibrate"``) on the first ``frames`` frames of the film's
+    2-D keypoints (``keypoints.npz``: a detector's, noisy, some dropped), started automatically,
+    as ``track_sequence`` prepares a scene, the validation take the donor whose proportions and
+    clavicles centre the calibration's prior as ``prior`` says (``tracking.CALIBRATION_PRIORS``),
+    the prior narrowed by the limbs measured on every frame's keypoints
+    (``tracking.measure_limb_lengths``, as ``prepare_test`` does): no ground truth read. From the
+    keypoints alone, or with ``silhouettes`` (C, T, H, W) as ``jaxtrack track --video --keypoints``
+    does (``likelihood.calibrate_body_from_keypoints``): the limb lengths from the keypoints, then
+    the radii from the silhouettes and keypoints together."""
     key = jax.random.key(0)
     validation_subject = subject_body(validation, "the validation sequence", key=key)
     layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
     clearance = motion_clearance([validation], [validation_subject.poses], skeletons=[validation_subject.body.skeleton])
+    likelihood = "keypoints" if silhouettes is None else "silhouette+keypoints"
+    extra = {} if silhouettes is None else {"silhouettes": silhouettes.astype(np.uint8)}
     sequence = truth.replace(keypoints2d=load_keypoints(os.path.join(film, "keypoints.npz"))[0], skeleton_offsets=None,
-                             capsule_radii=None, pose=None, pose_layout=None, joints3d=None)
-    options = TrackingSpec(likelihood="keypoints", body="calibrate", start="auto").scene_options()
-    scene = prepare_test(sequence, "keypoints", key=key, frames=frames, calibration_frames=frames, say=say_body, start="auto",
+                             capsule_radii=None, pose=None, pose_layout=None, joints3d=None, **extra)
+    options = TrackingSpec(likelihood=likelihood, body="calibrate", start="auto", body_prior=prior).scene_options()
+    scene = prepare_test(sequence, likelihood, key=key, calibration_frames=frames, say=say_body, start="auto",
                          start_model=manifold,
                          root_height=float(np.mean(validation_subject.poses[:, layout.index("root_z")])),
                          ground_clearance=clearance, donors=[("the validation sequence", validation_subject, validation.subject)],
-                         calibration_prior=prior, **options)
+                         **options)
     return np.asarray(scene.body.skeleton.offsets, np.float64), np.asarray(scene.body.radii, np.float64)
 
 
@@ -94,15 +101,20 @@ def main() -> None:
     parser.add_argument("--variant", nargs=2, action="append", metavar=("LABEL", "JSON"),
                         help="a silhouette+edge+foreground run with these likelihood options, e.g. "
                              "'gated' '{\"edges_near\": 3}' (repeatable; default: its defaults)")
-    parser.add_argument("--body", default="default", choices=("default", "joints", "keypoints"),
+    parser.add_argument("--body", default="default", choices=("default", "joints", "keypoints", "video"),
                         help="the tracker's body: the default proportions; the skeleton fitted to the film's true joints, "
                              "radii withheld (a subject whose skeleton is known: an oracle for the limb lengths); or limb "
                              "lengths and radii calibrated on the first 4 frames of the film's 2-D keypoints alone "
-                             "(``keypoint_body``: no ground truth read)")
+                             "(``keypoint_body``: no ground truth read); or, ``video``, the limb lengths from those "
+                             "keypoints and the radii from them and each set's own silhouettes, as ``jaxtrack track "
+                             "--video --keypoints`` calibrates")
     parser.add_argument("--body-prior", default="motion", choices=CALIBRATION_PRIORS,
-                        help="with --body keypoints: what centres the calibration's prior (default: %(default)s, the "
+                        help="with --body keypoints or video: what centres the calibration's prior (default: %(default)s, the "
                              "validation take's proportions and clavicle posture: the films' subject is the model's)")
     parser.add_argument("--json")
+    parser.add_argument("--no-baseline", action="store_true",
+                        help="skip the silhouettes-alone runs (already made with the same seeds: they are deterministic)")
+    parser.add_argument("--save-joints", metavar="DIR", help="write each run's estimated joints (T, J, 3), metres, to DIR")
     args = parser.parse_args()
     truth = load_sequence(os.path.join(args.film, "truth.npz"))
     names = [str(n) for n in truth.camera_names]
@@ -126,18 +138,27 @@ def main() -> None:
         offsets, radii = keypoint_body(args.film, truth, manifold, validation, prior=args.body_prior)
         body, withheld = "auto", {"skeleton_offsets": offsets, "capsule_radii": radii, "joints3d": None, "pose": None,
                                   "pose_layout": None}
-    variants = {"silhouettes alone": BASELINE}
+    variants = {} if args.no_baseline else {"silhouettes alone": BASELINE}
     variants.update({k: ("silhouette+edge+foreground", json.loads(v) if isinstance(v, str) else v)
                      for k, v in (args.variant or DEFAULT_VARIANTS.items())})
     rows = []
     for label, masks in sets.items():
         iou = float(np.mean((masks & true).sum(axis=(2, 3)) / (masks | true).sum(axis=(2, 3))))
+        if args.body == "video":  # calibrated on this set's silhouettes, shared by every variant
+            offsets, radii = keypoint_body(args.film, truth, manifold, validation, prior=args.body_prior, silhouettes=masks)
+            body, withheld = "auto", {"skeleton_offsets": offsets, "capsule_radii": radii, "joints3d": None, "pose": None,
+                                      "pose_layout": None}
+            print(f"{label}: radii (mm) {np.round(1000 * radii).astype(int).tolist()}", flush=True)
         sequence = truth.replace(silhouettes=masks.astype(np.uint8), images=frames, **withheld)
         for name, (likelihood, options) in variants.items():
             spec = TrackingSpec(likelihood=likelihood, likelihood_options=options, body=body, start="auto")
             for seed in args.seeds:
                 _, joints, _ = track_sequence(sequence, manifold, header, "mrpf", validation, spec, seed=seed,
                                               say=say_body)
+                if args.save_joints:
+                    os.makedirs(args.save_joints, exist_ok=True)
+                    tag = "".join(ch if ch.isalnum() else "_" for ch in f"{label}_{name}_s{seed}")
+                    np.save(os.path.join(args.save_joints, tag + ".npy"), np.asarray(joints))
                 error = 1000 * float(np.mean(np.linalg.norm(np.asarray(joints) - truth.joints3d[: len(joints)], axis=-1)))
                 rows.append({"silhouettes": label, "iou": iou, "run": name, "likelihood": likelihood, "options": options,
                              "seed": seed, "error_mm": error})

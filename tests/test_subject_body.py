@@ -35,6 +35,7 @@ from jaxtrack.likelihood import (
     calibrate_body,
     calibrate_body_from_keypoints,
     check_silhouettes,
+    combine_length_prior,
     default_pixel_samples,
     keypoint_terms,
     make_ground_prior,
@@ -259,19 +260,25 @@ def test_a_calibration_takes_its_prior_from_the_motion_models_subject(other_subj
     lengths, _ = motion_subjects_prior([("donor", donor, None)])
 
     def calibration(prior):
-        return prepare_test(scene, "x.npz", key=jax.random.key(0), likelihood="keypoints", body="calibrate", frames=4,
-                            donors=[("donor", donor, None)], calibration_prior=prior, say=print).body_calibration
+        test = prepare_test(scene, "x.npz", key=jax.random.key(0), likelihood="keypoints", body="calibrate", frames=4,
+                            donors=[("donor", donor, None)], calibration_prior=prior, say=print)
+        return test.body_calibration, test.limb_measurement
 
-    motion_prior = calibration("motion")
+    def centre(reference, measured):  # the prior's centre narrowed by the limbs measured on the 4 frames' keypoints
+        names = tuple(LIMB_SEGMENTS)
+        return combine_length_prior(names, [reference[n] for n in names], 0.1, np.full(8, 0.06), measured.as_observation())[0]
+
+    motion_prior, measured = calibration("motion")
     assert "the proportions of the motion model's subject, their clavicles' posture held" in capsys.readouterr().out
-    np.testing.assert_allclose(motion_prior.reference_lengths, [lengths[n] for n in LIMB_SEGMENTS], rtol=1e-6)
+    assert {"upper_arm", "thigh"} <= set(measured.lengths)  # the left and right bones: 8 samples in 4 frames
+    np.testing.assert_allclose(motion_prior.reference_lengths, centre(lengths, measured), rtol=1e-6)
     np.testing.assert_allclose(motion_prior.neutral_pose, posture[0])
     np.testing.assert_allclose(motion_prior.poses_before[:, clavicles], np.broadcast_to(posture[0, clavicles], (4, 4)))
-    proportions = calibration("proportions")
+    proportions = calibration("proportions")[0]
     np.testing.assert_allclose(proportions.reference_lengths, motion_prior.reference_lengths)
     assert proportions.neutral_pose is None and np.all(proportions.poses_before[:, clavicles] == 0)
-    default = calibration("default")
-    np.testing.assert_allclose(default.reference_lengths, [DEFAULT_LIMB_LENGTHS[n] for n in LIMB_SEGMENTS], rtol=1e-6)
+    default = calibration("default")[0]
+    np.testing.assert_allclose(default.reference_lengths, centre(DEFAULT_LIMB_LENGTHS, measured), rtol=1e-6)
     assert default.neutral_pose is None
 
 

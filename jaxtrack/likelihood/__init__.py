@@ -35,6 +35,7 @@ from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of
 from ._body_calibration import calibrate_body as calibrate_body
 from ._body_calibration import calibrate_body_from_keypoints as calibrate_body_from_keypoints
+from ._body_calibration import combine_length_prior as combine_length_prior
 from ._body_calibration import fit_radii as fit_radii
 from ._body_calibration import limb_prior_centre as limb_prior_centre
 from ._body_calibration import with_body as with_body

@@ -86,7 +86,7 @@ class BodyCalibration(NamedTuple):
     Attributes:
         limb_names: the 8 limbs (keys of ``body.DEFAULT_LIMB_LENGTHS``).
         lengths_before, lengths_after: (8,) limb lengths, metres.
-        reference_lengths: (8,) the prior's centre, metres.
+        reference_lengths: (8,) the prior's centre, metres (with ``measured_lengths``, the centre they narrowed it to).
         capsule_names: the capsules.
         radii_before, radii_after: (K,) radii, metres.
         poses_before, poses_after: (F, D) the frames' poses.
@@ -182,6 +182,7 @@ def calibrate_body(
     neutral_pose=None,
     edge_factor: float = 0.5,
     floor_band: float | None = FLOOR_BAND_RADIUS,
+    measured_lengths: dict[str, tuple[float, float]] | None = None,
 ):
     """Fit the body's limb lengths and radii, and the frames' poses, to the first frames' images.
 
@@ -225,6 +226,10 @@ def calibrate_body(
             many metres of an ankle's ground point (``FloorBandSilhouette``: the feet and their
             shadows, which a capsule body can only explain with longer shins); None, or no floor
             prior: whole silhouettes. The returned likelihood scores whole silhouettes.
+        measured_lengths: limb name -> (length, standard error), metres: a measurement of some
+            limbs over more frames than those fitted (``tracking.measure_limb_lengths``: the
+            keypoints of every frame, triangulated), combined with the lengths' prior as a Gaussian
+            observation of their logs (``combine_length_prior``) before the fit.
         max_cost: the highest final cost (``-mean_f ln p / scale``) of a converged calibration,
             on 000 eq. 12's scale (``MAX_COST``); applied only to a likelihood with a tempered term
             (the silhouettes'); None, or a likelihood on another scale (the keypoints' alone): only
@@ -266,6 +271,8 @@ def calibrate_body(
         height = check_height(height)
     reference = limb_prior_centre(names, start_lengths, height, prior_lengths)
     sd_scale = scale_sd if height is None else scale_sd_height
+    if measured_lengths is not None:
+        reference, sd_scale, proportion_sds = combine_length_prior(names, reference, sd_scale, proportion_sds, measured_lengths)
     groups = symmetric_groups(body.capsule_names)
     log_radii = np.log(np.asarray(body.radii, np.float64))
     radius0 = np.array([log_radii[groups == g].mean() for g in range(groups.max() + 1)])
@@ -320,6 +327,40 @@ def calibrate_body(
         trace=np.asarray(trace), height=height, neutral_pose=neutral_pose,
     )
     return with_body(likelihood, new_body), np.asarray(fitted["pose"], np.float64), report
+
+
+COMBINED_SCALE_SD = 1e-3  # the common scale's sd once a measurement is in the prior: its spread is in the limbs' own sds
+
+
+def combine_length_prior(names, reference, scale_sd: float, proportion_sds, measured: dict[str, tuple[float, float]]):
+    """The limb lengths' prior with a measurement of some of them folded in: ``(reference (8,),
+    scale_sd, proportion_sds (8,))`` of the Gaussian posterior over the log lengths.
+
+    The prior is ``log L = log reference + s + p`` with ``s ~ N(0, scale_sd^2)`` common to every limb
+    and ``p_k ~ N(0, proportion_sds_k^2)``; the measurement, ``log L_k ~ N(log m_k, (se_k / m_k)^2)``
+    for each measured limb k (``measured``: name -> (m_k, se_k), metres). The posterior's mean is the
+    new reference, so an unmeasured limb moves with the common scale the others show; its marginal
+    sds the new proportion sds, and the common scale is then held (``COMBINED_SCALE_SD``).
+
+    Raises:
+        ValueError: a name that is not a limb, or a length or standard error that is not positive.
+    """
+    names = tuple(names)
+    unknown = sorted(set(measured) - set(names))
+    if unknown:
+        raise ValueError(f"measured_lengths names {unknown}, which are not limbs (the limbs: {', '.join(names)})")
+    bad = [n for n, (m, se) in measured.items() if not (np.isfinite(m) and m > 0 and np.isfinite(se) and se > 0)]
+    if bad:
+        raise ValueError(f"measured_lengths of {bad}: a length and a standard error must be positive metres")
+    sds = np.asarray(proportion_sds, np.float64)
+    prior_cov = scale_sd ** 2 * np.ones((len(names), len(names))) + np.diag(sds ** 2)
+    prior_precision = np.linalg.inv(prior_cov)
+    seen = np.array([n in measured for n in names])
+    values = np.array([np.log(measured[n][0]) if n in measured else 0.0 for n in names])
+    precisions = np.array([(measured[n][0] / measured[n][1]) ** 2 if n in measured else 0.0 for n in names])
+    posterior_cov = np.linalg.inv(prior_precision + np.diag(precisions))
+    mean = posterior_cov @ (prior_precision @ np.log(np.asarray(reference, np.float64)) + np.where(seen, precisions * values, 0.0))
+    return np.exp(mean), COMBINED_SCALE_SD, np.sqrt(np.diag(posterior_cov))
 
 
 def limb_prior_centre(names, start_lengths, height: float | None, prior_lengths) -> np.ndarray:
@@ -500,7 +541,8 @@ def calibrate_body_from_keypoints(likelihood: AbstractLikelihood, poses, observa
     fitted, fitted_poses, lengths = calibrate_body(SumLikelihood((alone, *priors)) if priors else alone, poses, observations,
                                                    **options)
     body = body_of(fitted)
-    kept = {key: value for key, value in options.items() if key not in ("height", "prior_lengths", "scale_sd", "proportion_sd")}
+    kept = {key: value for key, value in options.items()
+            if key not in ("height", "prior_lengths", "scale_sd", "proportion_sd", "measured_lengths")}
     try:  # the lengths held where the keypoints put them; the poses as free as in step 1
         whole, whole_poses, girth = calibrate_body(with_body(likelihood, body), fitted_poses, observations,
                                                    prior_lengths=dict(zip(lengths.limb_names, lengths.lengths_after)),

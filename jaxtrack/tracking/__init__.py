@@ -15,6 +15,8 @@ from ._gpapf import make_gpapf as make_gpapf
 from ._latentpf import latent_pf_filter as latent_pf_filter
 from ._latentpf import latent_random_walk as latent_random_walk
 from ._latentpf import make_latent_pf as make_latent_pf
+from ._limb_measurement import LimbMeasurement as LimbMeasurement
+from ._limb_measurement import measure_limb_lengths as measure_limb_lengths
 from ._mrpf import make_mrpf as make_mrpf
 from ._pipeline import CALIBRATION_FRAMES as CALIBRATION_FRAMES
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE

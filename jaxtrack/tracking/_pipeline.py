@@ -66,6 +66,7 @@ from ..likelihood import (
     fit_radii as fit_capsule_radii,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
+from ._limb_measurement import LimbMeasurement, measure_limb_lengths
 from ._refine_body import refine_frame_count, spread_frames, track_and_refine_body
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
@@ -268,6 +269,7 @@ class TestScene:
     body_calibration: BodyCalibration | None = None
     start_error_mm: float = float("nan")
     pixel_samples: int | None = None
+    limb_measurement: LimbMeasurement | None = None  # the limbs measured on the keypoints, which narrowed the calibration's prior
 
     @property
     def num_frames(self) -> int:
@@ -288,6 +290,10 @@ class TestScene:
         out["capsule_radii_mm"] = dict(zip(self.body.capsule_names, np.round(1000 * np.asarray(self.body.radii, np.float64), 1).tolist()))
         if self.body_calibration is not None:
             out["calibration"] = self.body_calibration.summary()
+        if self.limb_measurement is not None:
+            out["limbs_measured_on_keypoints_mm"] = {
+                limb: {"length": round(1000 * value, 1), "standard_error": round(1000 * self.limb_measurement.standard_errors[limb], 1)}
+                for limb, value in self.limb_measurement.lengths.items()}
         out["start_error_mm"] = self.start_error_mm
         return out
 
@@ -385,7 +391,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     the default proportions (``calibration_prior="default"``), or on the ``donors``' (the motion
     model's subjects, ``motion_subjects_prior``: ``"proportions"``), the clavicles then at rest,
     or held at the donors' mean posture as well (``"motion"``; docs/body.md, "The motion model's
-    subject"), scaled to ``height`` when it is given; ``"calibrate"`` always calibrates, ``"default"`` never (the
+    subject"), scaled to ``height`` when it is given, and narrowed by the limb lengths measured on
+    every tracked frame's keypoints where two views or more see them (``measure_limb_lengths``:
+    triangulated, the noise's bias removed; docs/body.md, "Limb lengths measured over every
+    frame"); ``"calibrate"`` always calibrates, ``"default"`` never (the
     default body, poses solved on it), ``"joints"`` fits to the joints even over a file's
     skeleton. ``fit_radii``: the capsule radii fitted to the silhouettes of ``RADII_FRAMES`` frames
     spread over the scene at their ground-truth poses, the skeleton kept (``likelihood.fit_radii``);
@@ -487,7 +496,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         initial_pose = truth_poses[0]
     if "images" in recipe.observes:  # the appearance references (001's histograms, 003's templates), at the start
         likelihood = set_references(likelihood, initial_pose, jax.tree.map(lambda x: x[0], observations))
-    calibration = None
+    calibration = measured = None
     tall = person_height_pixels(observed[:, 0]) if observed is not None else keypoint_height_pixels(keypoints[:, 0]) / 0.9
     wanted = body == "calibrate" or (body == "auto" and resolved.source == "default")
     if wanted and body == "auto" and tall < MIN_CALIBRATION_PIXELS:
@@ -514,6 +523,11 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                 f"{'s' if len(donors) > 1 else ''}" + (", their clavicles' posture held" if posture is not None else "")
                 + " (docs/body.md)")
         calibration_options = {"height": height, "prior_lengths": prior_lengths, "neutral_pose": posture}
+        measured = None if keypoints is None else measure_limb_lengths(rig, keypoints)
+        if measured is not None:  # every frame's keypoints, triangulated: the limbs' prior narrowed (docs/body.md)
+            calibration_options["measured_lengths"] = measured.as_observation()
+            say(f"{name}: limb lengths measured on {keypoints.shape[1]} frames' keypoints (noise {measured.pixel_noise:.1f} px; mm): "
+                + ", ".join(f"{n} {1000 * v:.0f} +- {1000 * measured.standard_errors[n]:.0f}" for n, v in measured.lengths.items()))
         alone = keypoint_terms(likelihood)
         try:  # with keypoints: the limb lengths from them, the radii from every cue (docs/body.md)
             calibrated, fitted_poses, calibration = calibrate_body_from_keypoints(likelihood + floor, *calibration_inputs,
@@ -587,6 +601,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         likelihood=likelihood, observations=observations, initial_pose=jnp.asarray(initial_pose, TRACKING_DTYPE),
         truth_poses=truth_poses, truth_joints=truth, body=body_model, shape_calibration=report, subject=resolved,
         body_calibration=calibration, start_error_mm=1000.0 * start_error, pixel_samples=pixel_samples,
+        limb_measurement=measured if calibration is not None else None,
     )
 
 

@@ -106,6 +106,8 @@ def refine_body(scene, tracked_poses, *, key, frames: int | None = None, start_j
         likelihood = likelihood + make_ground_prior(scene.body.skeleton, ground_clearance)
     observations = jax.tree.map(lambda x: jnp.asarray(x)[jnp.asarray(picks)], scene.observations)
     calibration_options.setdefault("proportion_sd", REFINE_PROPORTION_SD)
+    if scene.limb_measurement is not None:  # as the first pass narrowed its prior (measure_limb_lengths)
+        calibration_options.setdefault("measured_lengths", scene.limb_measurement.as_observation())
     if scene.body_calibration is not None and scene.body_calibration.neutral_pose is not None:
         calibration_options.setdefault("neutral_pose", scene.body_calibration.neutral_pose)  # as the first pass held them
     split = scene.body_calibration is not None and scene.body_calibration.cues == "keypoint lengths"
