@@ -31,7 +31,7 @@ import numpy as np
 
 import jaxtrack.planar as planar
 from jaxtrack.data import signalling_motion
-from jaxtrack.image import rgb_to_grey
+from jaxtrack.image import fit_background, rgb_to_grey, subtract_background
 
 METHODS = ("latentpf2d", "condensation2d", "mht2d")
 TRACKED_SHARE = 0.25
@@ -51,11 +51,11 @@ def fit_model(latent_dim=3, every=3, extra=()):
     return planar.fit_spm_model(train, latent_dim=latent_dim, every=every)
 
 
-def run(method, model, video, key, options=None):
+def run(method, model, video, key, options=None, masks=None):
     grey = np.asarray(rgb_to_grey(video.images), np.float32)
     tracker = planar.get_tracker2d(method).build(model, grey[0], video.markers[0], **(options or {}))
     start = time.perf_counter()
-    _carry, markers = planar.track_frames(tracker, grey[1:], key)
+    _carry, markers = planar.track_frames(tracker, grey[1:], key, masks=None if masks is None else masks[1:])
     markers = np.asarray(markers)
     seconds = time.perf_counter() - start
     markers = np.concatenate([np.asarray(video.markers[:1]), markers])
@@ -109,6 +109,11 @@ def main():
     parser.add_argument("--train-on-test", action="store_true",
                         help="003's own regime: the test takes' 3-D motion is added to the training takes (the test "
                              "videos' viewpoints stay unseen)")
+    parser.add_argument("--silhouettes", action="store_true",
+                        help="beyond 003: every tracker also scores the silhouette of a background subtraction (the "
+                             "video's frames of the empty scene as the background)")
+    parser.add_argument("--key-base", type=int, default=100,
+                        help="test video v is made with key KEY_BASE + v (100: the test takes; 200: the tuning takes)")
     parser.add_argument("--floor", action="store_true", help="also print the manifold's encode-decode error of each video")
     parser.add_argument("--json")
     parser.add_argument("--plot")
@@ -130,25 +135,32 @@ def main():
     for item in args.option:
         method, setting = item.split(":", 1)
         key, value = setting.split("=", 1)
-        options.setdefault(method, {})[key] = value if key == "estimate" else float(value)
+        options.setdefault(method, {})[key] = value if key in ("estimate", "start") else float(value)
     results, curves = {}, {}
     for v in args.views:
         view = planar.TEST_VIEWS[v]
-        video = planar.gesture_video(jax.random.key(100 + v), view=view, frames=args.frames, background=args.background,
+        video = planar.gesture_video(jax.random.key(args.key_base + v), view=view, frames=args.frames, background=args.background,
                                      transition=tuple(args.transition),
                                      limb_lengths=planar.TEST_LIMBS if args.test_body == "test" else None)
+        masks = None
+        if args.silhouettes:
+            masks = np.asarray(subtract_background(fit_background(video.background), video.images).mask)
+            iou = np.sum(masks & video.masks, axis=(1, 2)) / np.maximum(np.sum(masks | video.masks, axis=(1, 2)), 1)
+            print(f"{args.background}, az {view[0]:g} el {view[1]:g}: background subtraction, IoU with the true "
+                  f"silhouettes {iou.mean():.3f} (median {np.median(iou):.3f})")
         if args.floor:
             floor, floor_arms = manifold_floor(model, video)
             print(f"{args.background}, az {view[0]:g} el {view[1]:g}: the manifold's floor (true markers encoded and decoded, "
                   f"every 5th frame): {floor:.1f} px, arms {floor_arms:.1f} px")
         slow = "" if tuple(args.transition) == (0.4, 1.2) else f", {args.transition[0]:g}-{args.transition[1]:g} s"
         regime = (", training body" if args.test_body == "default" else "") + (", poses trained" if args.train_on_test else "")
+        regime += (", silhouettes" if args.silhouettes else "") + ("" if args.key_base == 100 else f", keys {args.key_base}+")
         name = f"{args.background}{slow}{regime}, az {view[0]:g} el {view[1]:g}"
         for method in args.methods:
             rows = []
             for r in range(args.runs):
                 markers, errors, arm_errors, tracked, seconds, truth_higher = run(method, model, video, jax.random.key(1000 * v + r),
-                                                                                  options.get(method))
+                                                                                  options.get(method), masks)
                 rows.append({"mean_px": float(errors.mean()), "arm_px": float(arm_errors.mean()), "tracked": float(tracked.mean()),
                              "truth_scores_higher": truth_higher,
                              "first_lost": int(np.argmin(tracked)) if not tracked.all() else len(tracked),

@@ -257,9 +257,10 @@ def _track2d(args) -> int:
     import numpy as np
 
     from .io import VideoWriter, atomic_write, check_output
-    from .planar import SPM_MARKERS, draw_markers, load_spm_model, read_first_markers, track_video
+    from .planar import SPM_MARKERS, draw_markers, get_tracker2d, load_spm_model, read_first_markers, track_video
 
-    out = check_output(args.out, [args.video, args.markers, args.model], suffix=".npz")
+    out = check_output(args.out, [args.video, args.markers, args.model] + ([args.background] if args.background else []),
+                       suffix=".npz")
     overlay = None if args.no_overlay else check_output(os.path.splitext(out)[0] + "_overlay.mp4", [args.video])
     model = load_spm_model(args.model)
     first = read_first_markers(args.markers)
@@ -280,8 +281,9 @@ def _track2d(args) -> int:
                 even = drawn[:, : drawn.shape[1] // 2 * 2, : drawn.shape[2] // 2 * 2]
                 writer.write(even[None])
 
+        options = _options(args.option, get_tracker2d(args.method).options, args.method)
         markers = track_video(args.method, model, args.video, first, key=jax.random.key(args.seed), frames=args.frames,
-                              chunk=args.chunk_frames, on_chunk=on_chunk)
+                              chunk=args.chunk_frames, on_chunk=on_chunk, options=options, background=args.background)
     finally:
         if writer is not None:
             writer.close()
@@ -986,6 +988,10 @@ def build_parser() -> argparse.ArgumentParser:
                          help="latentpf2d: 003's Condensation in the latent space (200 particles); condensation2d: "
                               "Condensation on a shoulder-anchored arm chain with an AR(2) model (1000 particles); mht2d: "
                               "multiple-hypothesis tracking on that chain (10 modes) (default: %(default)s)")
+    track2d.add_argument("--background", help="a video file or image folder of the empty scene from the same camera: the "
+                                               "trackers then score each frame's silhouette too (background subtraction)")
+    track2d.add_argument("--option", action="append", metavar="KEY=VALUE",
+                         help="a tracker option, e.g. start=fitted, estimate=marker-mean, silhouette_weight=3000, particles=500")
     track2d.add_argument("--frames", type=_at_least(2), help="track the first FRAMES frames (default: all)")
     track2d.add_argument("--seed", type=_seed, default=0)
     track2d.add_argument("--chunk-frames", type=_at_least(1), default=64,

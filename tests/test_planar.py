@@ -163,6 +163,80 @@ def _markers():
     return np.asarray(planar.spm_forward(jnp.asarray(state)))
 
 
+def _capsule_mask(markers, shape, hand=0.0):
+    """The SPM's capsules (``planar.HALF_WIDTHS``) drawn as a boolean mask by brute force."""
+    v, u = np.mgrid[: shape[0], : shape[1]]
+    pixels = np.stack([u.ravel(), v.ravel()], -1).astype(np.float64)
+    spine = np.linalg.norm(markers[1] - markers[0])
+    mask = np.zeros(len(pixels), bool)
+    for name, _parent, a, b in planar.SPM_LINKS:
+        p, q = markers[planar.SPM_MARKERS.index(a)], markers[planar.SPM_MARKERS.index(b)]
+        if name.endswith("forearm"):
+            q = q + hand * spine * (q - p) / np.linalg.norm(q - p)
+        t = np.clip((pixels - p) @ (q - p) / ((q - p) @ (q - p)), 0, 1)
+        mask |= np.linalg.norm(pixels - (p + t[:, None] * (q - p)), axis=-1) <= planar.HALF_WIDTHS[name] * spine
+    return mask.reshape(shape)
+
+
+def test_silhouette_chamfer_against_numpy():
+    markers = _markers()
+    shape = (64, 80)
+    mask = _capsule_mask(markers, shape, hand=planar.silhouette_chamfer().hand)
+    evidence = planar.silhouette_evidence(jnp.asarray(mask), jax.random.key(0), samples=300, stride=1)
+    # Every sample is a foreground pixel; the distance map is the exact distance to the foreground.
+    points = np.asarray(evidence.points).astype(int)
+    assert mask[points[:, 1], points[:, 0]].all() and np.asarray(evidence.valid).all()
+    v, u = np.nonzero(mask)
+    grid = np.stack(np.mgrid[: shape[0], : shape[1]][::-1], -1).reshape(-1, 2)
+    brute = np.min(np.linalg.norm(grid[:, None] - np.stack([u, v], -1)[None], axis=-1), axis=1).reshape(shape)
+    np.testing.assert_allclose(np.asarray(evidence.distance), brute, atol=1e-4)
+    # Read from blocks of 2 x 2 pixels (the default), a distance is off by a pixel and a half at most.
+    coarse = planar.silhouette_evidence(jnp.asarray(mask), jax.random.key(0), samples=300, stride=2)
+    grid_points = jnp.asarray(grid[(grid[:, 0] < shape[1] - 2) & (grid[:, 1] < shape[0] - 2)], jnp.float32)
+    exact = brute[np.asarray(grid_points[:, 1], int), np.asarray(grid_points[:, 0], int)]
+    assert np.max(np.abs(np.asarray(coarse.outside(grid_points)) - exact)) <= 1.5
+    chamfer = planar.silhouette_chamfer(weight=100.0)
+    # The pose that drew the mask covers it (up to the pixels' rounding) and lies inside it.
+    at_truth = float(chamfer.log_likelihood(evidence, jnp.asarray(markers)))
+    assert -0.05 < at_truth <= 0.0
+    # Against a NumPy reference at a moved left arm.
+    moved = markers.copy()
+    moved[[4, 5]] += np.array([12.0, -9.0])
+    spine = np.linalg.norm(moved[1] - moved[0])
+    links = [(planar.SPM_MARKERS.index(a), planar.SPM_MARKERS.index(b), name) for name, _, a, b in planar.SPM_LINKS]
+    axis = np.concatenate([moved[a] + np.linspace(0, 1, 8)[:, None] * (moved[b] - moved[a]) for a, b, _ in links])
+    def bilinear(image, x):  # the distance map read between pixels, as the likelihood reads it
+        i, j = int(np.floor(x[1])), int(np.floor(x[0]))
+        fy, fx = x[1] - i, x[0] - j
+        return ((1 - fy) * ((1 - fx) * image[i, j] + fx * image[i, j + 1])
+                + fy * ((1 - fx) * image[i + 1, j] + fx * image[i + 1, j + 1]))
+
+    inside = [min(bilinear(brute, x) / spine, 0.5) for x in axis]
+    samples = np.asarray(evidence.points, np.float64)
+    gaps = []
+    for x in samples[samples[:, 1] < moved[0, 1] + 0.1 * spine]:
+        best = np.inf
+        for a, b, name in links:
+            p, q = moved[a], moved[b]
+            if name.endswith("forearm"):
+                q = q + chamfer.hand * spine * (q - p) / np.linalg.norm(q - p)
+            t = np.clip((x - p) @ (q - p) / ((q - p) @ (q - p)), 0, 1)
+            best = min(best, max(np.linalg.norm(x - p - t * (q - p)) / spine - planar.HALF_WIDTHS[name], 0.0))
+        gaps.append(min(best, 0.5))
+    expected = -100.0 * (np.mean(np.square(inside)) + np.mean(np.square(gaps)))
+    got = float(chamfer.log_likelihood(evidence, jnp.asarray(moved)))
+    np.testing.assert_allclose(got, expected, rtol=1e-4)
+    assert got < at_truth - 0.5
+    residuals = chamfer.residuals(evidence, jnp.asarray(moved))
+    np.testing.assert_allclose(-float(jnp.sum(residuals**2)), got, rtol=1e-5)
+    # An empty mask scores every pose 0, finitely.
+    empty = planar.silhouette_evidence(jnp.zeros(shape, bool), jax.random.key(1))
+    assert float(chamfer.log_likelihood(empty, jnp.asarray(moved))) == 0.0
+    assert np.isfinite(np.asarray(jax.grad(lambda m: chamfer.log_likelihood(empty, m))(jnp.asarray(moved)))).all()
+    with pytest.raises(ValueError, match="no SPM link"):
+        planar.silhouette_chamfer(half_widths={"lhand": 0.1})
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_trackers_hold_a_still_scene_and_chunks_change_nothing(small_model):
     model, _ = small_model
@@ -185,12 +259,32 @@ def test_trackers_hold_a_still_scene_and_chunks_change_nothing(small_model):
         # The same steps without jit give the same tracks.
         state, templates, loose = tracker.init(key), tracker.templates, []
         for i in range(frames.shape[0]):
-            state, m = tracker.step(state, templates, frames[i], jax.random.fold_in(key, 1 + i))
+            state, m = tracker.step(state, templates, planar.Frame2D(frames[i]), jax.random.fold_in(key, 1 + i))
             loose.append(m)
         # float32 pixels; the MHT's Gauss-Newton solves amplify the rounding of a fused program.
         np.testing.assert_allclose(np.stack(loose), whole, atol=0.2 if name == "mht2d" else 1e-3, err_msg=name)
     with pytest.raises(ValueError, match="takes no option 'speed'"):
         planar.get_tracker2d("mht2d").build(model, image, markers, speed=1.0)
+    # With the body's silhouette: chunks change nothing, every tracker stays finite, and the fitted
+    # start decodes nearer the given markers than 003's projection.
+    masks = jnp.asarray(np.repeat(_capsule_mask(markers, image.shape)[None], 6, axis=0))
+    for name in ("latentpf2d", "condensation2d", "mht2d"):
+        tracker = planar.get_tracker2d(name).build(model, image, markers, **({"modes": 3} if name == "mht2d" else {"particles": 32}))
+        _, whole = planar.track_frames(tracker, frames, key, masks=masks)
+        carry, first = planar.track_frames(tracker, frames[:3], key, masks=masks[:3])
+        _, rest = planar.track_frames(tracker, frames[3:], key, masks=masks[3:], carry=carry, first_index=4)
+        np.testing.assert_allclose(np.concatenate([first, rest]), whole, atol=1e-9, err_msg=name)
+        assert np.all(np.isfinite(np.asarray(whole)))
+    with pytest.raises(ValueError, match="masks must be boolean"):
+        planar.track_frames(tracker, frames, key, masks=masks[:3])
+    errors = {}
+    for method in planar.START_METHODS:
+        start = planar.start_state(model, markers, method=method)
+        errors[method] = float(np.mean(np.linalg.norm(np.asarray(still.markers(jnp.asarray(start, jnp.float32)[None])[0]) - markers,
+                                                      axis=-1)))
+    assert errors["fitted"] <= errors["projection"] + 1e-3, errors
+    with pytest.raises(ValueError, match="start must be one of"):
+        planar.start_state(model, markers, method="nearest")
 
 
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache (the fitted model)
@@ -233,6 +327,22 @@ def test_track2d_command_writes_tracks_and_refuses_bad_input(small_model, tmp_pa
     assert tracks["markers2d"].shape == (5, 9, 2) and tracks["marker_names"].tolist() == list(planar.SPM_MARKERS)
     np.testing.assert_allclose(tracks["markers2d"][0], markers)
     assert (tmp_path / "tracks_overlay.mp4").stat().st_size > 0
+    # With the empty scene: the silhouettes are scored too; an empty scene of another size is refused.
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for i in range(3):
+        iio.imwrite(empty / f"{i:03d}.png", np.full((*image.shape, 3), 128, np.uint8))
+    assert main([*args, "--background", str(empty), "--option", "silhouette_weight=500", "--no-overlay"]) == 0
+    assert np.isfinite(np.load(out)["markers2d"]).all()
+    iio.imwrite(empty / "003.png", np.full((10, 10, 3), 128, np.uint8))
+    (empty / "003.png").rename(tmp_path / "small.png")
+    small = tmp_path / "small"
+    small.mkdir()
+    (tmp_path / "small.png").rename(small / "000.png")
+    assert main([*args, "--background", str(small), "--no-overlay"]) == 2
+    assert "the empty scene is 10x10" in capsys.readouterr().err
+    assert main([*args, "--option", "speed=2", "--no-overlay"]) == 2
+    assert "takes no option 'speed'" in capsys.readouterr().err
     # A video with fewer frames than asked, a marker file that does not match the model.
     assert main([*args, "--frames", "9", "--no-overlay"]) == 2
     assert "has 5 frames, fewer than the 9 asked for" in capsys.readouterr().err

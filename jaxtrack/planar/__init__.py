@@ -1,7 +1,8 @@
 """Paper 003 in its own setting: monocular 2-D upper-body tracking with the scaled prismatic
-model (SPM), an active-set GPLVM of SPM poses seen from the view sphere, NCC marker templates,
-003's latent Condensation and its two baselines (Condensation and multiple-hypothesis
-tracking on a shoulder-anchored arm chain). See docs/planar.md."""
+model (SPM), an active-set GPLVM of SPM poses seen from the view sphere, NCC marker templates
+(and, beyond 003, a silhouette likelihood from background subtraction), 003's latent
+Condensation and its two baselines (Condensation and multiple-hypothesis tracking on a
+shoulder-anchored arm chain). See docs/planar.md."""
 
 from ._arm_chain import ARM_STATE_DIM as ARM_STATE_DIM
 from ._arm_chain import ArmAnchor as ArmAnchor
@@ -12,13 +13,16 @@ from ._arm_chain import arm_states_from_features as arm_states_from_features
 from ._arm_condensation import ArmCondensation as ArmCondensation
 from ._arm_condensation import make_arm_condensation as make_arm_condensation
 from ._base import AbstractTracker2D as AbstractTracker2D
+from ._base import Frame2D as Frame2D
 from ._base import TrackCarry as TrackCarry
 from ._base import Tracker2DRecipe as Tracker2DRecipe
+from ._base import frame_log_likelihood as frame_log_likelihood
 from ._base import get_tracker2d as get_tracker2d
 from ._base import register_tracker2d as register_tracker2d
 from ._base import start_tracking as start_tracking
 from ._base import track_frames as track_frames
 from ._base import tracker2d_names as tracker2d_names
+from ._latent_condensation import START_METHODS as START_METHODS
 from ._latent_condensation import LatentCondensation as LatentCondensation
 from ._latent_condensation import make_latent_condensation as make_latent_condensation
 from ._latent_condensation import start_state as start_state
@@ -39,6 +43,12 @@ from ._scenes import TEST_VIEWS as TEST_VIEWS
 from ._scenes import GestureVideo as GestureVideo
 from ._scenes import gesture_video as gesture_video
 from ._scenes import plain_wall as plain_wall
+from ._silhouette import HALF_WIDTHS as HALF_WIDTHS
+from ._silhouette import SILHOUETTE_WEIGHT as SILHOUETTE_WEIGHT
+from ._silhouette import SilhouetteChamfer as SilhouetteChamfer
+from ._silhouette import SilhouetteEvidence as SilhouetteEvidence
+from ._silhouette import silhouette_chamfer as silhouette_chamfer
+from ._silhouette import silhouette_evidence as silhouette_evidence
 from ._spm import NUM_LINKS as NUM_LINKS
 from ._spm import SPM_FEATURE_DIM as SPM_FEATURE_DIM
 from ._spm import SPM_LINKS as SPM_LINKS

@@ -21,8 +21,9 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from ._arm_chain import ArmAnchor, arm_anchor, arm_markers, arm_state_from_markers
 from ._arm_condensation import _cast
-from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, register_tracker2d, uniform_start
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, frame_log_likelihood, register_tracker2d, uniform_start
 from ._model import ArmAR
+from ._silhouette import SILHOUETTE_WEIGHT, SilhouetteChamfer, silhouette_chamfer
 from ._templates import MarkerTemplates, marker_templates
 
 ARMIJO = 1e-4
@@ -81,6 +82,7 @@ class MultipleHypothesisTracker(AbstractTracker2D):
     ar: ArmAR
     start: Float[Array, " 6"]
     templates: MarkerTemplates
+    silhouette: SilhouetteChamfer
     damping: float
     separation: float
     modes: int = eqx.field(static=True)
@@ -93,7 +95,7 @@ class MultipleHypothesisTracker(AbstractTracker2D):
         del key
         return uniform_start(self.start, self.modes, (2,))  # (x_t, x_{t-1}) per mode
 
-    def step(self, state, templates, image, key):
+    def step(self, state, templates, frame, key):
         modes, _log_weights = state
         now, before = modes[:, 0], modes[:, 1]
         predicted = self.ar.predict(now, before)  # (K, 6)
@@ -103,11 +105,18 @@ class MultipleHypothesisTracker(AbstractTracker2D):
         parents = jnp.repeat(now, self.samples, axis=0)
 
         def residual(x):
-            return 1.0 - templates.correlations(image, arm_markers(x, self.anchor))
+            markers = arm_markers(x, self.anchor)
+            r = 1.0 - templates.correlations(frame.grey, markers)
+            if frame.silhouette is None:
+                return r
+            # ln p = scale * mean NCC - sum s^2 ~ const - (scale / M) (sum (1 - NCC) + (M / scale) sum s^2)
+            s = self.silhouette.residuals(frame.silhouette, markers).astype(r.dtype)
+            return jnp.concatenate([r, jnp.sqrt(r.shape[0] / templates.scale) * s])
 
         descended = jax.vmap(lambda x: gauss_newton(residual, x, iterations=self.iterations, backtracks=self.backtracks,
                                                     damping=self.damping))(draws)
-        log_weights = clean_log_weights(jax.vmap(lambda m: templates.log_likelihood(image, m))(arm_markers(descended, self.anchor)))
+        markers = arm_markers(descended, self.anchor)
+        log_weights = clean_log_weights(jax.vmap(lambda m: frame_log_likelihood(templates, self.silhouette, frame, m))(markers))
         chosen = distinct_best(log_weights, descended, self.modes, self.separation)
         new_modes = jnp.stack([descended[chosen], parents[chosen]], axis=1)
         return (new_modes, clean_log_weights(log_weights[chosen])), arm_markers(descended[chosen[0]], self.anchor)
@@ -115,8 +124,9 @@ class MultipleHypothesisTracker(AbstractTracker2D):
 
 def make_mht(model, first_image, first_markers, *, modes: int = 10, samples: int = 3, iterations: int = 5, backtracks: int = 6,
              damping: float = 1e-2, separation: float = 0.05, likelihood_scale: float = 20.0,
-             template_update: float = 0.0) -> MultipleHypothesisTracker:
-    """003's MHT baseline on an ``SPMModel``'s AR(2), from the first frame and its markers."""
+             template_update: float = 0.0, silhouette_weight: float = SILHOUETTE_WEIGHT) -> MultipleHypothesisTracker:
+    """003's MHT baseline on an ``SPMModel``'s AR(2), from the first frame and its markers; on
+    frames with masks the matching cost gains the silhouette's residuals (``silhouette_weight``)."""
     for name, value in (("modes", modes), ("samples", samples), ("iterations", iterations)):
         if int(value) < 1:
             raise ValueError(f"{name} must be at least 1, got {value}")
@@ -125,13 +135,14 @@ def make_mht(model, first_image, first_markers, *, modes: int = 10, samples: int
     anchor = _cast(arm_anchor(jnp.asarray(first_markers, dtype)), dtype)
     return MultipleHypothesisTracker(
         anchor=anchor, ar=_cast(model.arm_ar, dtype), start=arm_state_from_markers(anchor.markers, anchor), templates=templates,
-        damping=float(damping), separation=float(separation), modes=int(modes), samples=int(samples),
-        iterations=int(iterations), backtracks=int(backtracks), template_update=float(template_update),
+        silhouette=silhouette_chamfer(weight=silhouette_weight), damping=float(damping), separation=float(separation),
+        modes=int(modes), samples=int(samples), iterations=int(iterations), backtracks=int(backtracks),
+        template_update=float(template_update),
     )
 
 
 register_tracker2d(Tracker2DRecipe(
     "mht2d", "003's baseline: multiple-hypothesis tracking (damped Gauss-Newton, Armijo rule) on the arm chain",
     make_mht, options={"modes": 10, "samples": 3, "iterations": 5, "backtracks": 6, "damping": 1e-2, "separation": 0.05,
-                       "likelihood_scale": 20.0, "template_update": 0.0},
+                       "likelihood_scale": 20.0, "template_update": 0.0, "silhouette_weight": SILHOUETTE_WEIGHT},
 ))

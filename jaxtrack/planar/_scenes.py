@@ -30,12 +30,16 @@ class GestureVideo:
         markers: (T, 9, 2) the SPM markers' true positions, pixels.
         view: (azimuth, elevation) of the camera, degrees.
         fps: frame rate.
+        background: (B, H, W, 3) uint8 frames of the empty scene (for ``image.fit_background``).
+        masks: (T, H, W) bool the person's true silhouettes (what a background subtraction should find).
     """
 
     images: np.ndarray
     markers: np.ndarray
     view: tuple[float, float]
     fps: float
+    background: np.ndarray
+    masks: np.ndarray
 
 
 def plain_wall(width: int, height: int, key) -> np.ndarray:
@@ -54,11 +58,12 @@ BACKGROUNDS = ("photo", "wall")
 
 def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30.0, width: int = 320, height: int = 240,
                   distance: float = 2.2, target_height: float = 1.45, limb_lengths=TEST_LIMBS, background: str = "photo",
-                  transition=(0.4, 1.2), chunk: int = 8) -> GestureVideo:
+                  transition=(0.4, 1.2), chunk: int = 8, background_frames: int = 10) -> GestureVideo:
     """A monocular video of ``signalling_motion`` (module docstring), over a photograph
     (``background="photo"``: ``data.background_photo``, busy, with a face) or a plain wall
     (``"wall"``, ``plain_wall``); ``transition``: ``signalling_motion``'s (seconds between key
-    postures).
+    postures); ``background_frames`` frames of the empty scene are filmed too (sensor noise
+    and lighting as in the video).
 
     Raises:
         ValueError: if the view is one of the training views (it would not test generalisation).
@@ -76,7 +81,10 @@ def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30
                           height=height, dtype=np.float32)
     solid = SolidBody(motion.body.skeleton)
     backgrounds = None if background == "photo" else plain_wall(width, height, jax.random.fold_in(key, 2))[None]
-    pictures, _masks = render_rgb(jax.random.fold_in(key, 1), solid, rig, motion.pose, settings=PhotoSettings(), fps=fps,
-                                  backgrounds=backgrounds, chunk=chunk)
+    pictures, masks = render_rgb(jax.random.fold_in(key, 1), solid, rig, motion.pose, settings=PhotoSettings(), fps=fps,
+                                 backgrounds=backgrounds, chunk=chunk)
+    empty, _ = render_rgb(jax.random.fold_in(key, 3), solid, rig, motion.pose[: max(1, int(background_frames))],
+                          settings=PhotoSettings(), fps=fps, backgrounds=backgrounds, chunk=chunk, with_body=False)
     markers, _scale = project_markers(rig, motion.joints3d, HUMANEVA_JOINTS)
-    return GestureVideo(images=pictures[0], markers=markers[0], view=(azimuth, elevation), fps=float(fps))
+    return GestureVideo(images=pictures[0], markers=markers[0], view=(azimuth, elevation), fps=float(fps),
+                        background=np.asarray(empty[0]), masks=np.asarray(masks[0], bool))

@@ -3,8 +3,10 @@
 ``read_first_markers`` reads the first frame's markers from ``{"markers": {"head": [x, y], ...}}``
 (pixels; every name of ``SPM_MARKERS``); ``track_video`` reads the video in chunks (never whole
 in memory), tracks each chunk with one jitted scan, and hands each chunk's tracks to a callback
-(the command writes the tracks so far after each); ``draw_markers`` draws the SPM's links over
-frames for an overlay video.
+(the command writes the tracks so far after each); given a video of the empty scene, it also
+subtracts the background (``image.fit_background``, ``subtract_background``) and the trackers
+score each frame's silhouette too (``SilhouetteChamfer``); ``draw_markers`` draws the SPM's links
+over frames for an overlay video.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import os
 import jax.numpy as jnp
 import numpy as np
 
-from ..image import rgb_to_grey
+from ..image import fit_background, rgb_to_grey, subtract_background
 from ._base import get_tracker2d, start_tracking, track_frames
 from ._spm import SPM_LINKS, SPM_MARKERS
 
@@ -57,7 +59,7 @@ def read_first_markers(path) -> np.ndarray:
 
 
 def track_video(method: str, model, video_path, first_markers, *, key, frames: int | None = None, chunk: int = 64,
-                options=None, on_chunk=None) -> np.ndarray:
+                options=None, on_chunk=None, background=None) -> np.ndarray:
     """Track a monocular video (file or image folder) from its first frame's markers.
 
     Args:
@@ -67,6 +69,8 @@ def track_video(method: str, model, video_path, first_markers, *, key, frames: i
         key: the run's PRNG key.
         frames: track the first ``frames`` frames (None: all); more than the video has is refused.
         chunk: frames decoded and tracked at a time.
+        background: a video file or image folder of the empty scene from the same camera, or
+            None (the templates alone, as 003).
         on_chunk: called as ``on_chunk(first_frame, rgb_frames (t, H, W, 3) uint8, markers so far
             (T', 9, 2))`` after each chunk.
 
@@ -77,6 +81,11 @@ def track_video(method: str, model, video_path, first_markers, *, key, frames: i
 
     recipe = get_tracker2d(method)
     first_markers = np.asarray(first_markers, np.float64)
+    scene = None
+    if background is not None:
+        with MultiViewVideo([background]) as empty:
+            pictures = np.concatenate([c[0] for _, c in empty.chunks(chunk)])
+        scene = fit_background(pictures)
     with MultiViewVideo([video_path]) as video:
         if frames is not None:
             if int(frames) < 2:
@@ -84,6 +93,9 @@ def track_video(method: str, model, video_path, first_markers, *, key, frames: i
             if int(frames) > video.num_frames:
                 raise ValueError(f"{video_path}: has {video.num_frames} frames, fewer than the {frames} asked for")
         width, height = video.sizes[0]
+        if scene is not None and scene.colour.shape[:2] != (height, width):
+            raise ValueError(f"{background}: the empty scene is {scene.colour.shape[1]}x{scene.colour.shape[0]}, the video "
+                             f"{width}x{height}")
         u, v = first_markers[:, 0], first_markers[:, 1]
         outside = (u < 0) | (u > width - 1) | (v < 0) | (v > height - 1)
         if np.any(outside):
@@ -93,13 +105,15 @@ def track_video(method: str, model, video_path, first_markers, *, key, frames: i
         for first, pictures in video.chunks(chunk, frames=frames):
             rgb = pictures[0]
             grey = jnp.asarray(rgb_to_grey(rgb), jnp.float32)
+            masks = None if scene is None else subtract_background(scene, rgb).mask
             offset = 0
             if tracker is None:
                 tracker = recipe.build(model, grey[0], first_markers, **(options or {}))
                 carry = start_tracking(tracker, key)
                 grey, offset = grey[1:], 1
+                masks = None if masks is None else masks[1:]
             if len(grey):
-                carry, markers = track_frames(tracker, grey, key, carry=carry, first_index=first + offset)
+                carry, markers = track_frames(tracker, grey, key, masks=masks, carry=carry, first_index=first + offset)
                 tracks.append(np.asarray(markers, np.float64))
             if on_chunk is not None:
                 on_chunk(first, rgb, np.concatenate(tracks))
