@@ -13,7 +13,8 @@ that the parts whose colours are near the background's are lost, view after view
 after frame). ``--sets`` keeps some of the first three sets; ``--variant`` adds runs with
 other options of the combined likelihood. Then MRPF (budget 500, the
 default body or another ``--body``, the automatic start: no ground truth read, the truth only scores) tracks each set
-with the silhouettes alone and with 001's edge and foreground terms added, the edges from the
+with the silhouettes alone and with 001's edge and foreground terms added (the foreground at 001's
+equal weight and at the registered 0.1, unless ``--variant`` says otherwise), the edges from the
 videos' frames (Canny), and prints the mean joint error (mm) of each seed (``--save-joints DIR``
 keeps each run's estimated joints).
 """
@@ -32,7 +33,8 @@ from jaxtrack.manifold import load_model
 from jaxtrack.tracking import CALIBRATION_PRIORS, TrackingSpec, motion_clearance, prepare_test, subject_body, track_sequence
 
 BASELINE = ("silhouette", {})
-DEFAULT_VARIANTS = {"+ edge + foreground": {}}
+DEFAULT_VARIANTS = {"+ edge + foreground (001's equal weights)": {"foreground_weight": 1.0},
+                    "+ edge + foreground x0.1 (the default)": {}}
 
 
 def read(paths) -> np.ndarray:

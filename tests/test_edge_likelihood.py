@@ -90,7 +90,8 @@ def test_the_foreground_weight_scales_the_foreground_term_alone(scene):
     np.testing.assert_allclose(np.asarray(score(quarter, poses, frame)), -2.0 * np.asarray(sigma_e + 0.25 * sigma_fg), rtol=1e-12)
     assert np.asarray(sigma_fg).min() > 0.0  # the weight has something to scale on these poses
     np.testing.assert_array_equal(np.asarray(score(likelihood, poses, frame)), -np.asarray(sigma_e + sigma_fg))
-    assert get_likelihood("silhouette+edge+foreground").options["foreground_weight"] == 1.0
+    assert get_likelihood("edge+foreground").options["foreground_weight"] == 1.0  # 001's eq. 19
+    assert get_likelihood("silhouette+edge+foreground").options["foreground_weight"] == 0.1
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ConfigurationError, match="foreground_weight"):
             make_edge_foreground_likelihood(likelihood.body, likelihood.rig, foreground_weight=bad, dtype=jnp.float64)

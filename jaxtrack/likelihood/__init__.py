@@ -65,6 +65,7 @@ from ._keypoints import keypoint_terms as keypoint_terms
 from ._keypoints import make_keypoint_likelihood as make_keypoint_likelihood
 from ._registry import DEFAULT_LIKELIHOOD as DEFAULT_LIKELIHOOD
 from ._registry import OBSERVATION_KINDS as OBSERVATION_KINDS
+from ._registry import SILHOUETTE_FOREGROUND_WEIGHT as SILHOUETTE_FOREGROUND_WEIGHT
 from ._registry import LikelihoodRecipe as LikelihoodRecipe
 from ._registry import SceneInputs as SceneInputs
 from ._registry import available_likelihoods as available_likelihoods

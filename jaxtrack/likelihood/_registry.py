@@ -192,10 +192,16 @@ def _silhouette_edge_foreground(inputs: SceneInputs, *, edge_width: float, weigh
                                                                            **edge_options)
 
 
+SILHOUETTE_FOREGROUND_WEIGHT = 0.1
+"""``foreground_weight`` of ``silhouette+edge+foreground``: 001's foreground term at a tenth of its
+edge term (001 eq. 19 weighs them equally; ``edge+foreground`` keeps that). Next to the
+silhouettes, which already cover the foreground, the full term cost accuracy; at 0.1 the three
+terms beat the silhouettes alone on both films, clean and corrupted (docs/likelihood.md,
+"The foreground at a tenth by default")."""
 register_likelihood(LikelihoodRecipe(
     "silhouette+edge+foreground", "the silhouettes' likelihood times 001's edge and foreground terms (weight: their "
-    "temperature over the silhouettes')",
-    _silhouette_edge_foreground, {**_EDGE_OPTIONS, "weight": 1.0},
+    "temperature over the silhouettes'; foreground_weight: the foreground term's against the edges', 0.1 by default)",
+    _silhouette_edge_foreground, {**_EDGE_OPTIONS, "weight": 1.0, "foreground_weight": SILHOUETTE_FOREGROUND_WEIGHT},
     observes=("silhouettes", "edges", "foreground")))
 
 
