@@ -107,7 +107,9 @@ def test_the_combined_recipes_weight_scales_001s_terms_alone(scene):
     assert recipe.options["weight"] == 1.0 and recipe.options["visibility"] == "occlusion"
     frame = {"silhouettes": jnp.asarray(seq.silhouettes[:, 0], jnp.float64), **jax.tree.map(lambda m: m[0], maps)}
     poses = jnp.asarray(motion.pose[:3], jnp.float64)
-    one, three = (eqx.filter_jit(lambda lik, p, o: lik.log_likelihood(p, o))(recipe.make(inputs, weight=w), poses, frame)
+    # the fixture's edge likelihood weighs its foreground term as 001 does (1; the recipe's default is 0.1)
+    one, three = (eqx.filter_jit(lambda lik, p, o: lik.log_likelihood(p, o))(recipe.make(inputs, weight=w, foreground_weight=1.0),
+                                                                             poses, frame)
                   for w in (1.0, 3.0))
     edge_part = likelihood.log_likelihood(poses, jax.tree.map(lambda m: m[0], maps))
     np.testing.assert_allclose(np.asarray(three - one), 2.0 * np.asarray(edge_part), rtol=1e-5)
