@@ -112,6 +112,8 @@ def main():
     parser.add_argument("--silhouettes", action="store_true",
                         help="beyond 003: every tracker also scores the silhouette of a background subtraction (the "
                              "video's frames of the empty scene as the background)")
+    parser.add_argument("--sidestep", type=float, default=0.0,
+                        help="metres: the test person steps from side to side (planar.gesture_video's sidestep)")
     parser.add_argument("--key-base", type=int, default=100,
                         help="test video v is made with key KEY_BASE + v (100: the test takes; 200: the tuning takes)")
     parser.add_argument("--floor", action="store_true", help="also print the manifold's encode-decode error of each video")
@@ -139,7 +141,8 @@ def main():
     results, curves = {}, {}
     for v in args.views:
         view = planar.TEST_VIEWS[v]
-        video = planar.gesture_video(jax.random.key(args.key_base + v), view=view, frames=args.frames, background=args.background,
+        video = planar.gesture_video(jax.random.key(args.key_base + v), view=view, sidestep=args.sidestep, frames=args.frames,
+                                     background=args.background,
                                      transition=tuple(args.transition),
                                      limb_lengths=planar.TEST_LIMBS if args.test_body == "test" else None)
         masks = None
@@ -154,6 +157,7 @@ def main():
                   f"every 5th frame): {floor:.1f} px, arms {floor_arms:.1f} px")
         slow = "" if tuple(args.transition) == (0.4, 1.2) else f", {args.transition[0]:g}-{args.transition[1]:g} s"
         regime = (", training body" if args.test_body == "default" else "") + (", poses trained" if args.train_on_test else "")
+        regime += (f", sidestep {args.sidestep:g} m" if args.sidestep else "")
         regime += (", silhouettes" if args.silhouettes else "") + ("" if args.key_base == 100 else f", keys {args.key_base}+")
         name = f"{args.background}{slow}{regime}, az {view[0]:g} el {view[1]:g}"
         for method in args.methods:

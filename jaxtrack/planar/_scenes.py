@@ -58,12 +58,15 @@ BACKGROUNDS = ("photo", "wall")
 
 def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30.0, width: int = 320, height: int = 240,
                   distance: float = 2.2, target_height: float = 1.45, limb_lengths=TEST_LIMBS, background: str = "photo",
-                  transition=(0.4, 1.2), chunk: int = 8, background_frames: int = 10) -> GestureVideo:
+                  transition=(0.4, 1.2), chunk: int = 8, background_frames: int = 10,
+                  sidestep: float = 0.0) -> GestureVideo:
     """A monocular video of ``signalling_motion`` (module docstring), over a photograph
     (``background="photo"``: ``data.background_photo``, busy, with a face) or a plain wall
     (``"wall"``, ``plain_wall``); ``transition``: ``signalling_motion``'s (seconds between key
     postures); ``background_frames`` frames of the empty scene are filmed too (sensor noise
-    and lighting as in the video).
+    and lighting as in the video). ``sidestep`` (metres): the person also steps from side to side
+    across the camera's view, the pelvis moving by ``sidestep * sin(2 pi t / 4 s)`` along the
+    horizontal perpendicular to the camera's direction (0: standing in place, as 003's subjects).
 
     Raises:
         ValueError: if the view is one of the training views (it would not test generalisation).
@@ -77,6 +80,13 @@ def gesture_video(key, *, view=TEST_VIEWS[0], frames: int = 150, fps: float = 30
         raise ValueError(f"background must be one of {BACKGROUNDS}, got {background!r}")
     motion = signalling_motion(jax.random.fold_in(key, 0), num_frames=frames, fps=fps, limb_lengths=limb_lengths,
                                transition=transition)
+    if sidestep:
+        shift = float(sidestep) * np.sin(2 * np.pi * np.arange(frames) / (4.0 * fps))
+        pose, joints3d = np.array(motion.pose, copy=True), np.array(motion.joints3d, copy=True)
+        across = np.array([-np.sin(np.radians(azimuth)), np.cos(np.radians(azimuth))])  # the camera is at azimuth
+        pose[:, 0:2] += shift[:, None] * across  # root_x, root_y
+        joints3d[..., 0:2] += shift[:, None, None] * across
+        motion = dataclasses.replace(motion, pose=pose, joints3d=joints3d)
     rig = view_sphere_rig((azimuth,), (elevation,), distance=distance, target_height=target_height, width=width,
                           height=height, dtype=np.float32)
     solid = SolidBody(motion.body.skeleton)
