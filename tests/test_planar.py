@@ -378,3 +378,24 @@ def test_a_marker_file_must_name_the_models_markers(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ValueError, match="not JSON"):
         planar.read_first_markers(path)
+
+
+def test_gesture_video_films_the_person_the_empty_scene_and_a_sidestep():
+    key = jax.random.key(3)
+    still = planar.gesture_video(key, frames=2, fps=1.0, width=64, height=48, background="wall", background_frames=2)
+    moved = planar.gesture_video(key, frames=2, fps=1.0, width=64, height=48, background="wall", background_frames=2,
+                                 sidestep=0.3)
+    assert still.images.shape == (2, 48, 64, 3) and still.images.dtype == np.uint8
+    assert still.background.shape == (2, 48, 64, 3) and still.masks.shape == (2, 48, 64) and still.masks.dtype == bool
+    assert still.masks.all(axis=(1, 2)).sum() == 0 and still.masks.any(axis=(1, 2)).all()
+    # The empty scene is the video where the person is not.
+    outside = ~still.masks[0]
+    assert np.abs(still.images[0].astype(int) - still.background[0].astype(int))[outside].mean() < 10
+    assert np.abs(still.images[0].astype(int) - still.background[0].astype(int))[still.masks[0]].mean() > 10
+    # A sidestep (at t = 1 s, a quarter of its 4 s period: 0.3 m) moves every marker across the image,
+    # along the camera's horizontal axis: u changes, v does not; frame 0 is where the person stood.
+    np.testing.assert_allclose(moved.markers[0], still.markers[0], atol=1e-6)
+    shift = moved.markers[1] - still.markers[1]
+    assert np.all(np.abs(shift[:, 0]) > 3.0) and np.max(np.abs(shift[:, 1])) < 1e-3
+    with pytest.raises(ValueError, match="is a training view"):
+        planar.gesture_video(key, view=(30.0, 0.0), frames=2)
