@@ -18,6 +18,7 @@ from ._base import TrackCarry as TrackCarry
 from ._base import Tracker2DRecipe as Tracker2DRecipe
 from ._base import frame_log_likelihood as frame_log_likelihood
 from ._base import get_tracker2d as get_tracker2d
+from ._base import marker_log_weights as marker_log_weights
 from ._base import register_tracker2d as register_tracker2d
 from ._base import start_tracking as start_tracking
 from ._base import track_frames as track_frames

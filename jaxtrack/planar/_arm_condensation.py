@@ -13,15 +13,7 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from ..filters import weighted_mean
 from ._arm_chain import ArmAnchor, arm_anchor, arm_markers, arm_state_from_markers
-from ._base import (
-    AbstractTracker2D,
-    Tracker2DRecipe,
-    clean_log_weights,
-    frame_log_likelihood,
-    register_tracker2d,
-    resample_indices,
-    uniform_start,
-)
+from ._base import AbstractTracker2D, Tracker2DRecipe, marker_log_weights, register_tracker2d, resample_indices, uniform_start
 from ._model import ArmAR
 from ._silhouette import SILHOUETTE_WEIGHT, SilhouetteChamfer, silhouette_chamfer
 from ._templates import MarkerTemplates, marker_templates
@@ -54,7 +46,7 @@ class ArmCondensation(AbstractTracker2D):
         now, before = states[:, 0], states[:, 1]
         new = self.ar.predict(now, before) + self.ar.noise * jax.random.normal(k_noise, now.shape, now.dtype)
         markers = arm_markers(new, self.anchor)
-        log_weights = clean_log_weights(jax.vmap(lambda m: frame_log_likelihood(templates, self.silhouette, frame, m))(markers))
+        log_weights = marker_log_weights(templates, self.silhouette, frame, markers)
         estimate = weighted_mean(log_weights, new)
         return (jnp.stack([new, now], axis=1), log_weights), arm_markers(estimate, self.anchor)
 

@@ -51,6 +51,13 @@ def frame_log_likelihood(templates: MarkerTemplates, silhouette: SilhouetteChamf
     return log_p
 
 
+def marker_log_weights(templates: MarkerTemplates, silhouette: SilhouetteChamfer, frame: Frame2D,
+                       markers: Float[Array, "n 9 2"]) -> Float[Array, " n"]:
+    """Every hypothesis's ``frame_log_likelihood``, normalised (NaN -> -inf; all -inf -> uniform):
+    the weights each tracker gives its particles or draws."""
+    return clean_log_weights(jax.vmap(lambda m: frame_log_likelihood(templates, silhouette, frame, m))(markers))
+
+
 class AbstractTracker2D(eqx.Module):
     """A monocular tracker of the SPM markers.
 

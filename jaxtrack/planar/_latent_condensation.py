@@ -17,15 +17,7 @@ import numpy as np
 
 from .._custom_types import Array, Float
 from ..filters import weighted_mean
-from ._base import (
-    AbstractTracker2D,
-    Tracker2DRecipe,
-    clean_log_weights,
-    frame_log_likelihood,
-    register_tracker2d,
-    resample_indices,
-    uniform_start,
-)
+from ._base import AbstractTracker2D, Tracker2DRecipe, marker_log_weights, register_tracker2d, resample_indices, uniform_start
 from ._silhouette import SILHOUETTE_WEIGHT, SilhouetteChamfer, silhouette_chamfer
 from ._spm import SPM_REFERENCE_LENGTHS, spine_to_neck, spm_features, spm_forward, spm_from_markers, spm_state
 from ._templates import MarkerTemplates, marker_templates
@@ -63,7 +55,7 @@ class LatentCondensation(AbstractTracker2D):
         states = states[resample_indices(k_resample, log_weights)]
         states = states + self.step_sd * jax.random.normal(k_walk, states.shape, states.dtype)
         markers = self.markers(states)
-        log_weights = clean_log_weights(jax.vmap(lambda m: frame_log_likelihood(templates, self.silhouette, frame, m))(markers))
+        log_weights = marker_log_weights(templates, self.silhouette, frame, markers)
         if self.estimate == "marker-mean":
             return (states, log_weights), weighted_mean(log_weights, markers)
         return (states, log_weights), self.markers(weighted_mean(log_weights, states)[None])[0]

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from .._custom_types import Array, Float
 from ._arm_chain import ArmAnchor, arm_anchor, arm_markers, arm_state_from_markers
 from ._arm_condensation import _cast
-from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, frame_log_likelihood, register_tracker2d, uniform_start
+from ._base import AbstractTracker2D, Tracker2DRecipe, clean_log_weights, marker_log_weights, register_tracker2d, uniform_start
 from ._model import ArmAR
 from ._silhouette import SILHOUETTE_WEIGHT, SilhouetteChamfer, silhouette_chamfer
 from ._templates import MarkerTemplates, marker_templates
@@ -116,7 +116,7 @@ class MultipleHypothesisTracker(AbstractTracker2D):
         descended = jax.vmap(lambda x: gauss_newton(residual, x, iterations=self.iterations, backtracks=self.backtracks,
                                                     damping=self.damping))(draws)
         markers = arm_markers(descended, self.anchor)
-        log_weights = clean_log_weights(jax.vmap(lambda m: frame_log_likelihood(templates, self.silhouette, frame, m))(markers))
+        log_weights = marker_log_weights(templates, self.silhouette, frame, markers)
         chosen = distinct_best(log_weights, descended, self.modes, self.separation)
         new_modes = jnp.stack([descended[chosen], parents[chosen]], axis=1)
         return (new_modes, clean_log_weights(log_weights[chosen])), arm_markers(descended[chosen[0]], self.anchor)
