@@ -34,18 +34,6 @@ import os
 import tempfile
 
 
-def shifted(sequence, offset):
-    """The sequence with ``offset`` added to its joint angles (its stored joints dropped: they
-    would no longer match)."""
-    import numpy as np
-
-    from jaxtrack.body import GLOBAL_DOFS
-
-    pose = np.asarray(sequence.pose, np.float64).copy()
-    pose[:, GLOBAL_DOFS:] += offset
-    return sequence.replace(pose=pose, joints3d=None)
-
-
 def posture_floor_mm(train_angles, test_sequence, frames, shift=None):
     """The nearest-training-pose floor (``experiment.nearest_pose_floor_mm``'s rule) of the test
     take's first ``frames`` frames, the test angles less ``shift`` matched and ``shift`` added back."""
@@ -101,7 +89,14 @@ def main():
     import numpy as np
 
     from jaxtrack.body import GLOBAL_DOFS
-    from jaxtrack.experiment import ExperimentConfig, convert_takes, get_protocol, render_test_take, run_experiment
+    from jaxtrack.experiment import (
+        ExperimentConfig,
+        centre_subjects,
+        convert_takes,
+        get_protocol,
+        render_test_take,
+        run_experiment,
+    )
 
     protocol = get_protocol(args.protocol)
     if args.without:
@@ -125,10 +120,8 @@ def main():
         test_key = jax.random.fold_in(key, [t.name for t in protocol.takes()].index(fold.test.name))
         scene = render_test_take(test_key, sequences[fold.test.name], views=3, size=(80, 60), frames=protocol.test_frames)
         names = {"train": [t.name for t in fold.train], "validation": [t.name for t in fold.validation], "test": [fold.test.name]}
-        means = {s: np.concatenate([angles(x) for t, x in zip(fold.train, train) if t.subject == s]).mean(0)
-                 for s in {t.subject for t in fold.train}}
         pooled = np.concatenate([angles(x) for x in train]).mean(0)
-        centred = [shifted(x, pooled - means[t.subject]) for t, x in zip(fold.train, train)]
+        centred, c_validation = centre_subjects(fold, train, validation)
         true_mean = angles(crop(fold.test, protocol.test_frames)).mean(0)
         raw_angles = np.concatenate([angles(x) for x in train])
         centred_angles = np.concatenate([angles(x) for x in centred])
@@ -150,7 +143,6 @@ def main():
                 person = np.asarray(first["estimates"][fold.test.name]["mrpf"][0], np.float64)[:, GLOBAL_DOFS:].mean(0)
                 row["first_pass_mm"] = round(first["sequences"][fold.test.name]["mrpf"]["error_mm_mean"], 1)
             row["offset_error_rms_rad"] = round(float(np.sqrt(np.mean((person - true_mean) ** 2))), 4)
-            c_validation = [shifted(x, pooled - means[t.subject]) for t, x in zip(fold.validation, validation)]
             row["methods"] = track_fold(centred, c_validation, scene, names, config, person - pooled)
         print(json.dumps(row), flush=True)
         rows.append(row)

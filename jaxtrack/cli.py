@@ -410,7 +410,8 @@ def _protocol(args) -> int:
     check_folder(args.out)
     rows = run_protocol(protocol, args.data, args.out, config, modes=tuple(args.modes), subjects=args.subjects, views=args.views,
                         size=args.image_size, renderer=args.renderer,
-                        azimuth=args.azimuth[0] if len(args.azimuth) == 1 else args.azimuth, progress=True)
+                        azimuth=args.azimuth[0] if len(args.azimuth) == 1 else args.azimuth, centre=args.centre_subjects,
+                        progress=True)
     from .experiment import protocol_table
 
     print()
@@ -916,6 +917,10 @@ def build_parser() -> argparse.ArgumentParser:
     protocol.add_argument("--without", nargs="+", metavar="SUBJECT",
                           help="drop these subjects from the whole protocol: its cross folds on the others are where a "
                                "setting for them is chosen without their motion (nested validation)")
+    protocol.add_argument("--centre-subjects", action="store_true",
+                          help="take each training subject's posture out of its takes (its mean joint angles replaced by "
+                               "the training takes' pooled mean), so the manifold learns the gait and not the people "
+                               "(docs/subjects.md, \"A person's own posture\")")
     protocol.add_argument("--views", type=_at_least(1, 64), default=3, help="cameras (default: %(default)s)")
     protocol.add_argument("--azimuth", type=_finite_float, nargs="+", default=[45.0], metavar="DEG",
                           help="the first camera's direction from the capture area's centre, degrees from the x axis, the "
@@ -1053,6 +1058,10 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
     parser.add_argument("--residual-decay", type=_decay_factor, metavar="D",
                         help="the residual's factor per frame, r_t = D r_(t-1) + noise: 1 a random walk, below 1 it fades "
                              "back to the manifold (default: each tracker's own with its own residual, 1 with --residual)")
+    parser.add_argument("--gait-rate", type=float, default=0.0, metavar="SPREAD",
+                        help=f"give {whose} on a manifold a per-particle gait rate, its log drawn with this spread: each "
+                             "particle steps its dynamics 0, 1 or 2 times a frame at its own cadence (default: 0, none; "
+                             "tried across people and not kept: docs/subjects.md)")
 
 
 def _spec_fields(args) -> dict:
@@ -1070,6 +1079,7 @@ def _spec_fields(args) -> dict:
         "resolution": args.resolution,
         "pixel_samples": "auto" if args.pixel_samples is None else args.pixel_samples, "refine_steps": args.refine_steps,
         "velocity": args.velocity, "residual": args.residual, "residual_decay": args.residual_decay,
+        "gait_rate": args.gait_rate,
     }
 
 

@@ -17,6 +17,7 @@ from jaxtrack.experiment import (
     ProtocolSubject,
     SubjectProtocol,
     Take,
+    centre_subjects,
     drift_ratio,
     protocol_table,
     run_protocol,
@@ -80,6 +81,47 @@ def test_the_nearest_training_pose_floor(shared_data, tmp_path):
     assert 10.0 < crossed < 200.0
     # Adding the test take's own frames can only bring the nearest pose closer.
     assert nearest_pose_floor_mm([other, own.cropped(40)], own) < crossed
+
+
+def test_centring_takes_each_training_subject_s_posture_out():
+    """Each training subject's takes (training and validation) end at the pooled mean posture,
+    by one shift per subject; the gait about it, the roots and a single-subject fold are kept."""
+    from jaxtrack.body import GLOBAL_DOFS
+
+    from helpers import small_experiment_sequences
+
+    walk, jog = small_experiment_sequences()[0]
+    validation = small_experiment_sequences()[1][0]
+    takes = {name: Take(subject, name, f"{name}.amc", 120.0) for name, subject in (("a1", "a"), ("a2", "a"), ("b1", "b"))}
+    # subject b stands 0.1 rad off in every joint angle: a posture of its own
+    b_pose = np.asarray(jog.pose, np.float64).copy()
+    b_pose[:, GLOBAL_DOFS:] += 0.1
+    b = jog.replace(pose=b_pose, joints3d=None)
+    fold = SubjectProtocol("toy", "", (ProtocolSubject("a", takes["a1"], (takes["a1"], takes["a2"])),
+                                       ProtocolSubject("b", takes["b1"], (takes["b1"],)),
+                                       ProtocolSubject("c", Take("c", "c1", "c1.amc", 120.0), (Take("c", "c2", "c2.amc", 120.0),)))
+                           ).fold("cross", "c")
+    assert [t.name for t in fold.train] == ["a1", "a2", "b1"] and [t.name for t in fold.validation] == ["a1", "b1"]
+    train, val = centre_subjects(fold, [walk, walk, b], [validation, b])
+
+    def angles(x):
+        return np.asarray(x.pose, np.float64)[:, GLOBAL_DOFS:]
+
+    pooled = np.concatenate([angles(walk), angles(walk), angles(b)]).mean(0)
+    for sequence in train:  # each take here is the whole of its subject's posture
+        np.testing.assert_allclose(angles(sequence).mean(0), pooled, atol=1e-12)
+    np.testing.assert_allclose(angles(train[0]) - angles(walk), np.broadcast_to(pooled - angles(walk).mean(0), angles(walk).shape),
+                               atol=1e-12)
+    a_shift = (angles(train[0]) - angles(walk))[0]
+    np.testing.assert_allclose(angles(val[0]) - angles(validation), np.broadcast_to(a_shift, angles(validation).shape), atol=1e-12)
+    np.testing.assert_allclose(angles(val[1]), angles(train[2]), atol=1e-12)  # b's shift
+    for before, after in zip([walk, walk, b, validation, b], [*train, *val]):
+        np.testing.assert_array_equal(np.asarray(after.pose)[:, :GLOBAL_DOFS], np.asarray(before.pose)[:, :GLOBAL_DOFS])
+        assert after.joints3d is None
+    within = SubjectProtocol("toy", "", (ProtocolSubject("a", takes["a1"], (takes["a2"],)),
+                                         ProtocolSubject("b", takes["b1"], (Take("b", "b2", "b2.amc", 120.0),)))).fold("within", "a")
+    kept, _ = centre_subjects(within, [walk], [walk])
+    np.testing.assert_allclose(np.asarray(kept[0].pose), np.asarray(walk.pose), atol=1e-12)
 
 
 def _row(mode, subject, errors, budget=500):

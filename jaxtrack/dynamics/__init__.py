@@ -3,7 +3,8 @@ function that fits it to motion data: the pose random walk of SIR and APF, secon
 (constant-velocity) pose dynamics, the latent random walk of GPAPF and 003's latent
 Condensation, MRPF's manifold-regularised transition (000 eqs. 27-30, both proposals), the
 GPDM's latent dynamics (001 eqs. 7-9) with their noise optionally refitted on validation motion,
-and two wrappers for any of them: a Kalman-tracked velocity and an off-manifold pose residual;
+and three wrappers for any of them: a Kalman-tracked velocity, an off-manifold pose residual and
+a per-particle gait rate;
 and 004's motion prototypes (a Gaussian mixture fitted to uncertain points) ordered by a
 variable-length Markov model."""
 
@@ -18,6 +19,7 @@ from ._base import gaussian_step as gaussian_step
 from ._base import is_refinable as is_refinable
 from ._base import is_restartable as is_restartable
 from ._base import restart_states as restart_states
+from ._gait_rate import GaitRate as GaitRate
 from ._gle_graph import GLEGraphWalk as GLEGraphWalk
 from ._gle_graph import fit_gle_graph_walk as fit_gle_graph_walk
 from ._gpdm_latent import GPDMLatentDynamics as GPDMLatentDynamics

@@ -11,6 +11,7 @@ from ._protocols import Fold as Fold
 from ._protocols import ProtocolSubject as ProtocolSubject
 from ._protocols import SubjectProtocol as SubjectProtocol
 from ._protocols import Take as Take
+from ._protocols import centre_subjects as centre_subjects
 from ._protocols import convert_takes as convert_takes
 from ._protocols import drift_ratio as drift_ratio
 from ._protocols import get_protocol as get_protocol
@@ -19,6 +20,7 @@ from ._protocols import plot_protocol as plot_protocol
 from ._protocols import protocol_table as protocol_table
 from ._protocols import render_test_take as render_test_take
 from ._protocols import run_protocol as run_protocol
+from ._protocols import shift_joint_angles as shift_joint_angles
 from ._report import method_label as method_label
 from ._report import plot_error_curves as plot_error_curves
 from ._report import results_table as results_table

@@ -35,6 +35,7 @@ from ._config import ExperimentConfig
 FOLD_MODES = ("cross", "within")
 RENDERERS = ("solid", "capsules")
 DEFAULT_AZIMUTH = 45.0  # degrees: the default rig's first camera (camera.default_rig)
+SETTING_DEFAULTS = {"azimuth": DEFAULT_AZIMUTH, "centre_subjects": False}  # what a row written before the setting existed ran with
 OTHER_RADII = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 """The capsule renderer's radii, as factors of the subject's default radii per capsule group
 (the real-motion tables' mismatched body, benchmarks/real_motion.py)."""
@@ -282,6 +283,42 @@ def render_test_take(key, sequence, *, views: int, size: tuple[int, int] = (80, 
     return scene.replace(capsule_radii=None) if withhold else scene
 
 
+def shift_joint_angles(sequence, offset):
+    """The sequence with ``offset`` (A,) radians added to every frame's joint angles (its stored
+    joints dropped: they would no longer match the pose)."""
+    from ..body import GLOBAL_DOFS
+
+    pose = np.asarray(sequence.pose, np.float64).copy()
+    pose[:, GLOBAL_DOFS:] += np.asarray(offset, np.float64)
+    return sequence.replace(pose=pose, joints3d=None)
+
+
+def centre_subjects(fold: Fold, train: list, validation: list) -> tuple[list, list]:
+    """Each training subject's posture taken out: every training and validation take of subject
+    s shifted by ``P - M_s``, ``M_s`` the mean joint angles of s's training takes and ``P`` those
+    of all the training takes pooled, so the manifold learns one posture and the gait, not the
+    people (issue #46's "poses normalised per subject"; docs/subjects.md, "A person's own
+    posture"). One training subject (a within fold): nothing moves.
+
+    Args:
+        fold: whose takes ``train`` and ``validation`` are (in ``fold.train`` / ``fold.validation`` order).
+        train, validation: the fold's sequences (the training takes cropped as the protocol keeps them).
+    """
+    from ..body import GLOBAL_DOFS
+
+    def angles(sequence):
+        return np.asarray(sequence.pose, np.float64)[:, GLOBAL_DOFS:]
+
+    subjects = dict.fromkeys(t.subject for t in fold.train)
+    means = {s: np.concatenate([angles(x) for t, x in zip(fold.train, train) if t.subject == s]).mean(0) for s in subjects}
+    pooled = np.concatenate([angles(x) for x in train]).mean(0)
+
+    def centred(take, sequence):
+        return shift_joint_angles(sequence, pooled - means[take.subject]) if take.subject in means else sequence
+
+    return ([centred(t, x) for t, x in zip(fold.train, train)], [centred(t, x) for t, x in zip(fold.validation, validation)])
+
+
 def drift_ratio(curve) -> float:
     """Mean error of the last quarter of the frames over that of the first quarter."""
     curve = np.asarray(curve, np.float64)
@@ -333,7 +370,7 @@ def _fold_row(fold: Fold, results: dict, config: ExperimentConfig, seconds: floa
 
 def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, config: ExperimentConfig, *, modes=FOLD_MODES,
                  subjects=None, views: int = 3, size: tuple[int, int] = (80, 60), renderer: str = "solid",
-                 azimuth: float | Sequence[float] = DEFAULT_AZIMUTH,
+                 azimuth: float | Sequence[float] = DEFAULT_AZIMUTH, centre: bool = False,
                  progress: bool = False, say=print) -> list[dict]:
     """Run the protocol's folds end to end and write ``out_dir/protocol.json`` and
     ``out_dir/table.md`` after each fold (each fold's own experiment outputs in
@@ -346,6 +383,8 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
         modes, subjects: which folds (default: every subject, cross and within).
         views, size, renderer, azimuth: the test scenes (``render_test_take``; ``azimuth``: the
             first camera's direction in degrees, or one per camera).
+        centre: take each training subject's posture out of its takes (``centre_subjects``);
+            the nearest training pose is then measured on the centred takes.
 
     Returns:
         one row per fold (``protocol_table`` draws them).
@@ -367,13 +406,13 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
     sequences = convert_takes(protocol.takes(), data_folder, os.path.join(out_dir, "converted"), seed=config.seed, say=say)
     settings = {"views": views, "size": list(size), "renderer": renderer, "azimuth": azimuth,
                 "seed": config.seed, "test_frames": protocol.test_frames,
-                "train_frames": protocol.train_frames, "methods_requested": list(config.methods)}
+                "train_frames": protocol.train_frames, "methods_requested": list(config.methods), "centre_subjects": bool(centre)}
     json_path = os.path.join(out_dir, "protocol.json")
     rows = []
     if os.path.exists(json_path):
         with open(json_path, encoding="utf-8") as handle:
             rows = [r for r in json.load(handle).get("rows", [])
-                    if all(r.get(k, DEFAULT_AZIMUTH if k == "azimuth" else None) == v for k, v in settings.items())]
+                    if all(r.get(k, SETTING_DEFAULTS.get(k)) == v for k, v in settings.items())]
     config = dataclasses.replace(config, frames=None)
     key = jax.random.key(config.seed)
     def crop(take, frames):
@@ -382,6 +421,9 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
 
     for fold in folds:
         train = [crop(t, protocol.train_frames) for t in fold.train]
+        validation = [sequences[t.name] for t in fold.validation]
+        if centre:
+            train, validation = centre_subjects(fold, train, validation)
         floor = nearest_pose_floor_mm(train, crop(fold.test, protocol.test_frames))
         done = [r for r in rows if r["mode"] == fold.mode and r["subject"] == fold.subject and r["budget"] == config.budget
                 and r["runs"] == config.runs]
@@ -394,7 +436,6 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
         test_key = jax.random.fold_in(key, [t.name for t in protocol.takes()].index(fold.test.name))
         scene = render_test_take(test_key, sequences[fold.test.name], views=views, size=size, frames=protocol.test_frames,
                                  renderer=renderer, azimuth=azimuth)
-        validation = [sequences[t.name] for t in fold.validation]
         say(f"{fold.label}: train {', '.join(t.name for t in fold.train)}; validation {', '.join(t.name for t in fold.validation)}; "
             f"test {fold.test.name} ({scene.num_frames} frames){'; ' + fold.note if fold.note else ''}")
         start = time.perf_counter()
@@ -491,8 +532,9 @@ def protocol_table(rows: list[dict], *, title: str = "") -> str:
     azimuth = settings.get("azimuth", DEFAULT_AZIMUTH)
     first = ("" if azimuth == DEFAULT_AZIMUTH else f" (the first at {azimuth:g} degrees)" if np.ndim(azimuth) == 0
              else f" (at {', '.join(f'{a:g}' for a in azimuth)} degrees)")
+    centred = ", each training subject's posture taken out" if settings.get("centre_subjects") else ""
     lines = [title, "", f"{settings['views']} views{first}, {settings['size'][0]}x{settings['size'][1]}, {settings['renderer']} renderer, "
-             f"budget {settings['budget']}, {settings['runs']} runs; mean (sd) mm, drift = last quarter / first quarter", "",
+             f"budget {settings['budget']}, {settings['runs']} runs{centred}; mean (sd) mm, drift = last quarter / first quarter", "",
              "| subject | trained on | start | nearest training pose | " + " | ".join(method_label(m) for m in methods) + " |",
              "|---|---|---:|---:|" + "---:|" * len(methods)]
     order = {s: i for i, s in enumerate(dict.fromkeys(r["subject"] for r in rows))}

@@ -274,7 +274,8 @@ def _build(method: str, fitted: dict, likelihood, config: ExperimentConfig, vali
     return build_tracker(get_tracker(method), fitted[method], likelihood, config.tracking_budget,
                          velocity_from=validation_poses if config.velocity_of(method) else None,
                          residual_from=validation_poses, residual_scale=config.residual_of(method),
-                         residual_decay=config.residual_decay_of(method), residual_target=config.residual_target_of(method))
+                         residual_decay=config.residual_decay_of(method), residual_target=config.residual_target_of(method),
+                         gait_rate=config.gait_rate_of(method))
 
 
 def _refined(scene, name: str, method: str, fitted: dict, config: ExperimentConfig, inputs: ExperimentInputs, results: dict, say):

@@ -33,7 +33,7 @@ from ..body import (
     limb_lengths_for_height,
 )
 from ..camera import check_in_view
-from ..dynamics import AbstractDynamics, VelocityFit, fit_pose_residual, fit_state_velocity
+from ..dynamics import AbstractDynamics, GaitRate, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..errors import ConfigurationError
 from ..filters import AbstractComposedFilter, LangevinRefinement, run_filter
 from ..io import Sequence, check_keypoints
@@ -193,7 +193,7 @@ def fit_tracker(recipe: TrackerRecipe, key: PRNGKeyArray, motion: MotionData):
 def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, refinement: LangevinRefinement | None = None,
                   velocity_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None,
                   residual_from: list[np.ndarray] | tuple[np.ndarray, ...] | None = None, residual_scale: float = 0.0,
-                  residual_decay: float = 1.0, residual_target=None):
+                  residual_decay: float = 1.0, residual_target=None, gait_rate: float = 0.0):
     """The tracker's filter on the fitted dynamics cast to ``TRACKING_DTYPE`` (the one cast).
 
     With ``velocity_from`` (validation pose arrays, (T >= 3, D) each) the filter's dynamics
@@ -208,6 +208,9 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     RMS joint-angle steps of the ``residual_from`` poses, and which fades by ``residual_decay`` a
     frame (1: a random walk) to ``residual_target`` ((A,) joint-angle offset, radians; None: 0).
 
+    With ``gait_rate`` > 0 the fitted dynamics (inside the residual and the velocity) are
+    stepped at a per-particle cadence whose log has that spread (``jaxtrack.dynamics.GaitRate``).
+
     With ``budget.refine_steps`` > 0 the filter gets gradient-refined moves,
     ``refinement`` (default ``LangevinRefinement(budget.refine_steps)``), given by the filter's
     ``with_refinement``: any ``AbstractComposedFilter`` on refinable dynamics
@@ -217,10 +220,12 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     if residual_target is not None and not residual_scale:
         raise ValueError("a residual target needs a pose residual (residual_scale > 0)")
     wants = [what for what, wanted in (("a pose residual", residual_scale), ("a velocity", velocity_from is not None),
-                                       ("refined moves", budget.refine_steps)) if wanted]
+                                       ("a gait rate", gait_rate), ("refined moves", budget.refine_steps)) if wanted]
     if wants and not isinstance(tracker, AbstractComposedFilter):
         raise ValueError(f"{recipe.label}'s filter ({type(tracker).__name__}) is not an AbstractComposedFilter (a dynamics and a "
                          f"likelihood it can take new ones of), so it cannot be given {' or '.join(wants)}")
+    if gait_rate:
+        tracker = tracker.with_dynamics(GaitRate(tracker.dynamics, spread=float(gait_rate)))
     if residual_scale:
         if residual_from is None:
             raise ValueError(f"a pose residual for {recipe.label} needs validation poses to fit it on")
@@ -807,7 +812,8 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
         return build_tracker(recipe, fitted, likelihood, spec.tracking_budget,
                              velocity_from=motion.validation if spec.velocity_of(method) else None,
                              residual_from=motion.validation, residual_scale=spec.residual_of(method),
-                             residual_decay=spec.residual_decay_of(method), residual_target=spec.residual_target_of(method))
+                             residual_decay=spec.residual_decay_of(method), residual_target=spec.residual_target_of(method),
+                             gait_rate=spec.gait_rate_of(method))
 
     tracker = build(scene.likelihood)
     if scene.body_calibration is not None and not spec.refines_body(scene):

@@ -114,6 +114,10 @@ class TrackingSpec:
             manifold (radians; ``dynamics.PoseResidual.target``): the tracked person's mean
             posture less the training motion's (docs/subjects.md, "A person's own posture");
             None: 0.
+        gait_rate: the spread (standard deviation of the log) of a per-particle gait rate for
+            every tracker on a manifold (``jaxtrack.dynamics.GaitRate``: each particle steps its
+            dynamics 0, 1 or 2 times a frame at its own cadence); 0 (the default): none.
+            Tried across people and not kept: docs/subjects.md, "Tried: a gait rate per particle".
         start: where ``track_sequence`` starts (``tracking.START_CHOICES``): "truth" (frame 0's
             ground truth) or "auto" (``tracking.automatic_start``: found from the first frame's
             images on the model's latent space; no ground truth needed).
@@ -147,6 +151,7 @@ class TrackingSpec:
     residual: float | None = None
     residual_decay: float | None = None
     residual_target: Any = None  # (A,) floats or None; kept as a tuple
+    gait_rate: float = 0.0
     start: str = "truth"
 
     def __post_init__(self):
@@ -183,6 +188,9 @@ class TrackingSpec:
         if self.residual_decay is not None and (isinstance(self.residual_decay, bool)
                                                 or not isinstance(self.residual_decay, (int, float)) or not 0 < self.residual_decay <= 1):
             raise ConfigurationError(f"residual_decay must be a number in (0, 1], got {self.residual_decay!r}")
+        if isinstance(self.gait_rate, bool) or not isinstance(self.gait_rate, (int, float)) or not (
+                math.isfinite(self.gait_rate) and 0 <= self.gait_rate <= 1):
+            raise ConfigurationError(f"gait_rate must be a spread in [0, 1] (0: none), got {self.gait_rate!r}")
         if self.residual_target is not None:
             target = np.asarray(self.residual_target)
             if target.ndim != 1 or not target.size or target.dtype.kind not in "fiu" or not np.all(np.isfinite(target)):
@@ -262,6 +270,11 @@ class TrackingSpec:
         """(A,) the offset tracker ``method``'s pose residual fades to, or None (0; also for a
         tracker without a residual)."""
         return np.asarray(self.residual_target, np.float64) if self.residual_target is not None and self.residual_of(method) else None
+
+    def gait_rate_of(self, method: str) -> float:
+        """The spread of tracker ``method``'s per-particle gait rate (0: none; only trackers on a
+        manifold carry one)."""
+        return float(self.gait_rate) if get_tracker(method).needs_manifold else 0.0
 
     def latent_dim_of(self, method: str) -> int | None:
         """The latent dimension of tracker ``method``'s manifold (None if it needs none)."""
