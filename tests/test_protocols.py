@@ -161,6 +161,8 @@ def test_the_table_verdicts_are_computed_from_the_rows():
     assert "3 views (the first at 0 degrees), 80x60" in turned
     listed = protocol_table([dict(r, azimuth=[45.0, 135.0, 225.0]) for r in rows], title="t")
     assert "3 views (at 45, 135, 225 degrees), 80x60" in listed
+    assert "posture taken out" not in table
+    assert "5 runs, each training subject's posture taken out; mean" in protocol_table([dict(r, centre_subjects=True) for r in rows])
 
 
 @pytest.mark.shared_data
