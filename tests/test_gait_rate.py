@@ -120,7 +120,7 @@ def test_the_pipeline_puts_the_rate_innermost_and_a_filter_runs_on_it_jitted_or_
     assert tracker.dynamics.inner.spread == 0.2 and isinstance(tracker.dynamics.inner.inner, Counter)
     assert not isinstance(build_tracker(recipe, Counter(), lik, Budget(64)).dynamics, GaitRate)
 
-    targets = jnp.cumsum(jnp.full((12, 8), 0.01), axis=0)
+    targets = jnp.cumsum(jnp.full((5, 8), 0.01), axis=0)
     key = jax.random.key(5)
     jitted = run_filter(tracker, key, jnp.zeros(8), targets)[1]
     with jax.disable_jit():
