@@ -357,7 +357,7 @@ def _experiment(args) -> int:
     config = ExperimentConfig(
         methods=tuple(args.methods), runs=args.runs, frames=args.frames, seed=args.seed, batch_runs=args.batch_runs,
         latent_dim=args.latent_dim, fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold,
-        **_spec_fields(args),
+        start=args.start, **_spec_fields(args),
     )
     from .io import check_folder
 
@@ -397,7 +397,8 @@ def _protocol(args) -> int:
 
     config = ExperimentConfig(
         methods=tuple(args.methods), runs=args.runs, seed=args.seed, batch_runs=args.batch_runs, latent_dim=args.latent_dim,
-        fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold, **_spec_fields(args),
+        fit_steps=args.fit_steps, fit_optimiser=args.fit_optimiser, manifold=args.manifold, start=args.start,
+        **_spec_fields(args),
     )
     protocol = get_protocol(args.name)
     if args.without:
@@ -743,7 +744,7 @@ def _likelihood_options(args) -> dict:
 def _experiment_arguments(experiment) -> None:
     """The trackers, runs, manifold fit and seed of ``experiment`` and ``protocol``."""
     from .manifold import DEFAULT_OPTIMISER, OPTIMISERS, manifold_kinds
-    from .tracking import PAPER_TRACKERS, available_trackers
+    from .tracking import PAPER_TRACKERS, START_CHOICES, available_trackers
 
     experiment.add_argument("--methods", nargs="+", default=list(PAPER_TRACKERS), choices=available_trackers(),
                             help=f"registered trackers (default: {' '.join(PAPER_TRACKERS)}). {_methods_help()}")
@@ -761,6 +762,11 @@ def _experiment_arguments(experiment) -> None:
                                  "about half the time) or optax's with its zoom line search (optax: the docs' tracking tables "
                                  "measured before 2026-11-26)")
     experiment.add_argument("--seed", type=_seed, default=0)
+    experiment.add_argument("--start", choices=START_CHOICES, default="truth",
+                            help="truth: every tracker starts from each test take's frame-0 ground truth (the paper's "
+                                 "protocol); auto: from a pose found in the first frame's images by an annealed search over "
+                                 "the first manifold the trackers run on (a BC-GPLVM fitted for it where none does), the "
+                                 "same start for every tracker; the ground truth then only scores (default: %(default)s)")
     experiment.add_argument("--manifold", choices=manifold_kinds(trackable=True),
                             help="the manifold of every manifold tracker of its family (GP: "
                                  f"{', '.join(manifold_kinds(family='gp', trackable=True))}; Laplacian Eigenmaps: "

@@ -1,6 +1,7 @@
 """The HumanEva-style experiment and `jaxtrack track`: inputs checked before anything runs,
 and a small end-to-end run (slow)."""
 
+import dataclasses
 import json
 
 import jax
@@ -95,6 +96,47 @@ def test_track_refuses_a_model_from_another_skeleton(sequences):
     header = {"extra": {"pose_layout": ["hip_a", "hip_b"] + [str(n) for n in train[0].pose_layout[8:]]}, "sequence_starts": [0, 30]}
     with pytest.raises(ValueError, match="fitted on another skeleton"):
         track_sequence(test[0], model, header, "mrpf", validation[0])
+
+
+def test_experiment_starts_automatically_without_the_truth(sequences):
+    """``start="auto"``: every tracker starts from the pose found in the first frame's images on
+    the first manifold the trackers run on (no ground truth read: changing frame 0's truth
+    changes the start's error, never the start), the root at the validation motion's mean height;
+    with no tracker on a manifold, a BC-GPLVM is fitted for the start alone."""
+    from jaxtrack.experiment import fit_methods, prepare_inputs, prepare_scenes, start_manifold
+
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir", "latentpf"), budget=40, runs=1, fit_steps=5, frames=3, start="auto")
+    bent = test[0].pose.copy()
+    bent[0, list(test[0].pose_layout).index("root_yaw")] += 0.5  # frame 0's truth turned by 0.5 rad
+    scenes = []
+    for seq in (test[0], test[0].replace(pose=bent, joints3d=None)):
+        results = {k: {} for k in ("ik_residual_mm", "likelihoods", "bodies", "ground_prior", "manifolds", "dynamics")}
+        results.update(refused={}, warnings=[], manifold=None, start=None)
+        inputs = prepare_inputs(train, validation, [seq], config, results, say=lambda *a: None)
+        assert inputs.scenes == []  # built after the fits: the start searches a fitted manifold
+        fit_methods(inputs, config, results, progress=False, say=lambda *a: None)
+        prepare_scenes(inputs, config, results, start_model=start_manifold(inputs, config, results, say=lambda *a: None),
+                       say=lambda *a: None)
+        scenes.append(inputs.scenes[0])
+    assert results["start"] == {"kind": "auto", "manifold": "gpdm-3d", "root_height_m": pytest.approx(
+        float(np.mean(validation[0].pose[:, list(validation[0].pose_layout).index("root_z")])))}
+    found, moved = scenes
+    np.testing.assert_array_equal(np.asarray(found.initial_pose), np.asarray(moved.initial_pose))
+    assert 5.0 < found.start_error_mm < 150.0 and abs(moved.start_error_mm - found.start_error_mm) > 5.0
+    z = list(test[0].pose_layout).index("root_z")
+    assert float(found.initial_pose[z]) == pytest.approx(results["start"]["root_height_m"], abs=1e-5)
+
+
+def test_an_automatic_start_without_a_manifold_tracker_fits_one(sequences):
+    """SIR alone with ``start="auto"``: a BC-GPLVM fitted for the start; ``start="truth"``
+    (the default) says so in the results."""
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir",), budget=40, runs=1, fit_steps=5, frames=3, start="auto")
+    run = run_experiment(train, validation, test, config, progress=False)
+    assert run["start"]["manifold"].startswith("bc-gplvm-") and run["sequences"]["test0"]["sir"]["start_error_mm"] > 5.0
+    truth = run_experiment(train, validation, test, dataclasses.replace(config, start="truth"), progress=False)
+    assert truth["start"] == {"kind": "truth"} and truth["sequences"]["test0"]["sir"]["start_error_mm"] < 5.0
 
 
 @pytest.mark.slow

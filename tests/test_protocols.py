@@ -163,6 +163,8 @@ def test_the_table_verdicts_are_computed_from_the_rows():
     assert "3 views (at 45, 135, 225 degrees), 80x60" in listed
     assert "posture taken out" not in table
     assert "5 runs, each training subject's posture taken out; mean" in protocol_table([dict(r, centre_subjects=True) for r in rows])
+    assert "no ground truth" not in table
+    assert "5 runs, the start found from the first frame's silhouettes" in protocol_table([dict(r, start="auto") for r in rows])
 
 
 @pytest.mark.shared_data
@@ -217,8 +219,13 @@ def test_a_protocol_runs_end_to_end_and_resumes(shared_data, tmp_path):
     assert again == json.loads(json.dumps(rows)) and sum("already" in s for s in said) == 2
     # A protocol.json written before the rig's azimuth was recorded holds the default rig's folds.
     assert all(r["azimuth"] == 45.0 for r in rows)
-    stored["rows"] = [{k: v for k, v in r.items() if k != "azimuth"} for r in stored["rows"]]
+    stored["rows"] = [{k: v for k, v in r.items() if k not in ("azimuth", "start")} for r in stored["rows"]]
     (tmp_path / "protocol.json").write_text(json.dumps(stored))
     said.clear()
     run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
     assert sum("already" in s for s in said) == 2
+    # Started automatically, the folds are new ones: the start found on each fold's manifold, not the truth.
+    found = run_protocol(small, shared_data, str(tmp_path), dataclasses.replace(config, start="auto"), subjects=["hdm05-bd"],
+                         modes=("cross",), say=said.append)
+    auto = [r for r in found if r.get("start") == "auto"]
+    assert len(auto) == 1 and auto[0]["start_found_on"] == "gle-3d" and auto[0]["start_error_mm"] > 5.0

@@ -30,6 +30,9 @@ from ._run import ExperimentInputs as ExperimentInputs
 from ._run import dynamics_parameters as dynamics_parameters
 from ._run import fit_methods as fit_methods
 from ._run import prepare_inputs as prepare_inputs
+from ._run import prepare_scenes as prepare_scenes
 from ._run import run_experiment as run_experiment
 from ._run import shared_window as shared_window
+from ._run import start_manifold as start_manifold
 from ._run import track_methods as track_methods
+from ._run import validation_root_height as validation_root_height

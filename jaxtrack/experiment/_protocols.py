@@ -35,7 +35,8 @@ from ._config import ExperimentConfig
 FOLD_MODES = ("cross", "within")
 RENDERERS = ("solid", "capsules")
 DEFAULT_AZIMUTH = 45.0  # degrees: the default rig's first camera (camera.default_rig)
-SETTING_DEFAULTS = {"azimuth": DEFAULT_AZIMUTH, "centre_subjects": False}  # what a row written before the setting existed ran with
+# what a row written before the setting existed ran with
+SETTING_DEFAULTS = {"azimuth": DEFAULT_AZIMUTH, "centre_subjects": False, "start": "truth"}
 OTHER_RADII = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 """The capsule renderer's radii, as factors of the subject's default radii per capsule group
 (the real-motion tables' mismatched body, benchmarks/real_motion.py)."""
@@ -365,7 +366,8 @@ def _fold_row(fold: Fold, results: dict, config: ExperimentConfig, seconds: floa
             "train": [t.name for t in fold.train], "validation": [t.name for t in fold.validation], "note": fold.note,
             "seconds": seconds, "budget": config.budget, "runs": config.runs, **settings, "methods": methods,
             "refused": dict(results.get("refused", {})),
-            "start_error_mm": next(iter(per_method.values()), {}).get("start_error_mm")}
+            "start_error_mm": next(iter(per_method.values()), {}).get("start_error_mm"),
+            "start_found_on": (results.get("start") or {}).get("manifold")}
 
 
 def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, config: ExperimentConfig, *, modes=FOLD_MODES,
@@ -406,7 +408,8 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
     sequences = convert_takes(protocol.takes(), data_folder, os.path.join(out_dir, "converted"), seed=config.seed, say=say)
     settings = {"views": views, "size": list(size), "renderer": renderer, "azimuth": azimuth,
                 "seed": config.seed, "test_frames": protocol.test_frames,
-                "train_frames": protocol.train_frames, "methods_requested": list(config.methods), "centre_subjects": bool(centre)}
+                "train_frames": protocol.train_frames, "methods_requested": list(config.methods), "centre_subjects": bool(centre),
+                "start": config.start}
     json_path = os.path.join(out_dir, "protocol.json")
     rows = []
     if os.path.exists(json_path):
@@ -533,8 +536,11 @@ def protocol_table(rows: list[dict], *, title: str = "") -> str:
     first = ("" if azimuth == DEFAULT_AZIMUTH else f" (the first at {azimuth:g} degrees)" if np.ndim(azimuth) == 0
              else f" (at {', '.join(f'{a:g}' for a in azimuth)} degrees)")
     centred = ", each training subject's posture taken out" if settings.get("centre_subjects") else ""
+    started = (", the start found from the first frame's silhouettes on each fold's first manifold (no ground truth)"
+               if settings.get("start") == "auto" else "")
     lines = [title, "", f"{settings['views']} views{first}, {settings['size'][0]}x{settings['size'][1]}, {settings['renderer']} renderer, "
-             f"budget {settings['budget']}, {settings['runs']} runs{centred}; mean (sd) mm, drift = last quarter / first quarter", "",
+             f"budget {settings['budget']}, {settings['runs']} runs{centred}{started}; mean (sd) mm, "
+             "drift = last quarter / first quarter", "",
              "| subject | trained on | start | nearest training pose | " + " | ".join(method_label(m) for m in methods) + " |",
              "|---|---|---:|---:|" + "---:|" * len(methods)]
     order = {s: i for i, s in enumerate(dict.fromkeys(r["subject"] for r in rows))}

@@ -128,9 +128,17 @@ class ExperimentInputs:
         train_poses, validation_poses: (T_i, D) float64 poses of the training and validation
             takes, each on its own body.
         motion_subjects: per training and validation take's name, its ``SubjectBody``.
-        scenes: the prepared test scenes (``tracking.TestScene``), in the order of ``test_names``.
+        scenes: the prepared test scenes (``tracking.TestScene``), in the order of ``test_names``
+            (``prepare_scenes``; empty until the manifolds are fitted when the start is found
+            automatically).
         test_names: the test sequences' display names.
         clearance: the ankle's clearance above the floor in the validation motion (metres).
+        tests: the test ``Sequence``s.
+        window: the likelihood's window, shared by the test scenes (``shared_window``).
+        donors: the training and validation takes' bodies (``prepare_test``'s ``donors``).
+        root_height: the validation motion's mean root height (metres): where the automatic
+            start holds the root.
+        manifolds: per ``(kind, latent_dim)``, the manifold ``fit_methods`` fitted.
     """
 
     train_poses: list
@@ -139,19 +147,26 @@ class ExperimentInputs:
     scenes: list
     test_names: list
     clearance: float = 0.06
+    tests: list = dataclasses.field(default_factory=list)
+    window: object = "auto"
+    donors: list = dataclasses.field(default_factory=list)
+    root_height: float | None = None
+    manifolds: dict = dataclasses.field(default_factory=dict)
 
 
 def _new_results(config: ExperimentConfig) -> dict:
     return {"config": config.as_dict(), "complete": False, "manifold": None, "manifolds": {}, "dynamics": {}, "velocity": {},
             "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {}, "estimates": {},
-            "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}}
+            "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}, "start": None}
 
 
 def prepare_inputs(train, validation, test, config: ExperimentConfig, results: dict, *, names=None, say=print) -> ExperimentInputs:
     """Stage 1 of ``run_experiment``: every file's body and poses, and every test scene (its
     silhouettes, cameras, body, likelihood and ground prior) built and checked, so a bad last
     file fails in seconds, not after the fits and the first tracks; records the bodies, the
-    inverse kinematics' residuals, the likelihoods and the ground priors in ``results``."""
+    inverse kinematics' residuals, the likelihoods and the ground priors in ``results``. With
+    ``config.start == "auto"`` the test files are checked here and their scenes built after the
+    fits (``prepare_scenes``): the automatic start searches a fitted manifold."""
     names = names or {}
     train_names = names.get("train") or [f"train{i}" for i in range(len(train))]
     validation_names = names.get("validation") or [f"validation{i}" for i in range(len(validation))]
@@ -174,17 +189,40 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     train_poses = [motion_subjects[n].poses for n in train_names]
     validation_poses = [motion_subjects[n].poses for n in validation_names]
     donors = [(name, motion_subjects[name], seq.subject) for seq, name in [*zip(train, train_names), *zip(validation, validation_names)]]
-    window = shared_window(test, config.frames, config.resolution)
     # The ankle's clearance above the floor in the validation motion: the floor's prior while a body is
     # calibrated from the images, and the tracker's ground prior.
     clearance = motion_clearance(validation, validation_poses, skeletons=[motion_subjects[n].body.skeleton for n in validation_names])
-    scenes = [prepare_test(seq, name, key=ik_key, frames=config.frames, window=window, donors=donors, say=say,
-                           ground_clearance=clearance, **config.scene_options())
-              for seq, name in zip(test, test_names)]
+    inputs = ExperimentInputs(train_poses, validation_poses, motion_subjects, [], test_names, clearance, tests=list(test),
+                              window=shared_window(test, config.frames, config.resolution), donors=donors,
+                              root_height=validation_root_height([motion_subjects[n] for n in validation_names]))
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
         _warn_unreachable(resolved, name, results)
-    for scene, name in zip(scenes, test_names):
+    if config.start == "truth":
+        prepare_scenes(inputs, config, results, say=say)
+    return inputs
+
+
+def validation_root_height(subjects) -> float:
+    """The mean root height (metres) over the validation takes' poses (``SubjectBody`` each,
+    its own pose layout): where the automatic start holds the root (``tracking.automatic_start``)."""
+    heights = [s.poses[:, list(s.body.skeleton.pose_layout).index("root_z")] for s in subjects]
+    return float(np.mean(np.concatenate(heights)))
+
+
+def prepare_scenes(inputs: ExperimentInputs, config: ExperimentConfig, results: dict, *, start_model=None,
+                   say=print) -> None:
+    """The test scenes (``tracking.prepare_test``) into ``inputs.scenes``, with the ground prior
+    where ``config.ground_prior``; records their likelihoods, bodies and ground priors in
+    ``results``. ``config.start == "auto"``: each scene's start is found from its first frame
+    on ``start_model``'s latent space (``tracking.automatic_start``), the root at
+    ``inputs.root_height``; every tracker then starts from it."""
+    key = jax.random.key(config.seed)
+    scenes = [prepare_test(seq, name, key=key, frames=config.frames, window=inputs.window, donors=inputs.donors, say=say,
+                           ground_clearance=inputs.clearance, start=config.start, start_model=start_model,
+                           root_height=inputs.root_height, **config.scene_options())
+              for seq, name in zip(inputs.tests, inputs.test_names)]
+    for scene, name in zip(scenes, inputs.test_names):
         results["likelihoods"][name] = {"name": config.likelihood, "options": dict(config.likelihood_options),
                                         "class": type(scene.likelihood).__name__, "pixel_samples": scene.pixel_samples}
         results["bodies"][name] = scene.body_summary()
@@ -193,12 +231,32 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
         say(f"{name}: body {scene.body_source}{f' ({scene.subject.detail})' if scene.subject.detail else ''}; the start pose is "
             f"{scene.start_error_mm:.1f} mm from frame 0's ground truth")
     if config.ground_prior:
-        scenes = [add_ground_prior(scene, clearance) for scene in scenes]
-        for scene, name in zip(scenes, test_names):
+        scenes = [add_ground_prior(scene, inputs.clearance) for scene in scenes]
+        for scene, name in zip(scenes, inputs.test_names):
             prior = scene.ground_prior
-            results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": clearance,
+            results["ground_prior"][name] = {"clearance_m": float(prior.clearance), "validation_clearance_m": inputs.clearance,
                                              "tolerance_m": float(prior.tolerance), "floor_height_m": float(prior.floor_height)}
-    return ExperimentInputs(train_poses, validation_poses, motion_subjects, scenes, test_names, clearance)
+    inputs.scenes = scenes
+
+
+def start_manifold(inputs: ExperimentInputs, config: ExperimentConfig, results: dict, *, progress=True, say=print):
+    """The manifold the automatic start searches: the first one the experiment's trackers run
+    on (in the order of ``config.methods``), or, where none does, a BC-GPLVM of the training
+    poses (``tracking.fit_manifold``'s default) fitted for the start alone. Records its label
+    in ``results["start"]``."""
+    fitted = [spec for spec in config.manifold_specs if spec in inputs.manifolds]
+    if fitted:
+        kind, latent_dim = fitted[0]
+        model = inputs.manifolds[fitted[0]]
+    else:
+        kind = "bc-gplvm"
+        model, info, _ = fit_manifold(inputs.train_poses, None, config.fit_steps, kind=kind, progress=progress,
+                                      optimiser=config.fit_optimiser, key=jax.random.key(config.seed))
+        latent_dim = model.latent_dim
+        say(f"start manifold: {type(model).__name__} on {int(model.data.shape[0])} training frames, latent dim {latent_dim}, "
+            f"objective {info.objective:.6g} after {info.steps} steps (no tracker runs on a manifold)")
+    results["start"] = {"kind": "auto", "manifold": manifold_label(kind, latent_dim), "root_height_m": inputs.root_height}
+    return model
 
 
 def _refuse(results: dict, method: str, why: str) -> None:
@@ -241,6 +299,7 @@ def fit_methods(inputs: ExperimentInputs, config: ExperimentConfig, results: dic
             "kind": kind, "class": type(model).__name__, "frames": int(model.data.shape[0]), "latent_dim": model.latent_dim,
             "objective": fit_info.objective, "steps": fit_info.steps, "fit_s": fit_s, "warnings": notes}
         motions[kind, latent_dim] = motion_data(train_poses, validation_poses, model, starts)
+        inputs.manifolds[kind, latent_dim] = model
     if results["manifolds"]:
         results["manifold"] = next(iter(results["manifolds"].values()))
     fitted = {}
@@ -397,6 +456,11 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     results = _new_results(config)
     inputs = prepare_inputs(train, validation, test, config, results, names=names, say=say)
     fitted = fit_methods(inputs, config, results, progress=progress, say=say)
+    if config.start == "auto":  # the start searched on a fitted manifold, the same for every tracker
+        prepare_scenes(inputs, config, results, start_model=start_manifold(inputs, config, results, progress=progress, say=say),
+                       say=say)
+    else:
+        results["start"] = {"kind": "truth"}
     track_methods(inputs, fitted, config, results, out_dir=out_dir, say=say)
     results["complete"] = True
     if out_dir is not None:

@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, Skeleton, forward_kinematics
 from ..camera import CameraRig
 from ..filters import choose_beta, systematic
@@ -178,9 +179,10 @@ def automatic_start(key, likelihood, observations, model, rig: CameraRig, skelet
     """
     position, heading, how = root_guess(rig, skeleton, silhouettes=silhouettes, keypoints=keypoints)
     frames = jax.tree.map(lambda x: jnp.asarray(x[: search.frames]), observations)
-    latent = jnp.asarray(model.training_latent(), dtype)
+    with jax.enable_x64(True):  # the predictive map factorised in float64 (a fitted model's own), then searched in dtype
+        latent = jnp.asarray(np.asarray(model.training_latent(), np.float64), dtype)
+        predict = cast_floating(model.predictor(), dtype)
     spread = jnp.std(latent, axis=0)
-    predict = model.predictor()
     layout = list(skeleton.pose_layout)
     slots = [layout.index(n) for n in ("root_x", "root_y", "root_z", "root_yaw")]
     n = search.particles
