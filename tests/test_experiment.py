@@ -104,6 +104,7 @@ def test_experiment_starts_automatically_without_the_truth(sequences):
     changes the start's error, never the start), the root at the validation motion's mean height;
     with no tracker on a manifold, a BC-GPLVM is fitted for the start alone."""
     from jaxtrack.experiment import fit_methods, prepare_inputs, prepare_scenes, start_manifold
+    from jaxtrack.tracking import leg_length
 
     train, validation, test = sequences
     config = ExperimentConfig(methods=("sir", "latentpf"), budget=40, runs=1, fit_steps=5, frames=3, start="auto")
@@ -120,12 +121,14 @@ def test_experiment_starts_automatically_without_the_truth(sequences):
                        say=lambda *a: None)
         scenes.append(inputs.scenes[0])
     assert results["start"] == {"kind": "auto", "manifold": "gpdm-3d", "root_height_m": pytest.approx(
-        float(np.mean(validation[0].pose[:, list(validation[0].pose_layout).index("root_z")])))}
+        float(np.mean(validation[0].pose[:, list(validation[0].pose_layout).index("root_z")]))),
+        "root_height_legs_m": pytest.approx(leg_length(validation[0].body()))}
     found, moved = scenes
     np.testing.assert_array_equal(np.asarray(found.initial_pose), np.asarray(moved.initial_pose))
     assert 5.0 < found.start_error_mm < 150.0 and abs(moved.start_error_mm - found.start_error_mm) > 5.0
     z = list(test[0].pose_layout).index("root_z")
-    assert float(found.initial_pose[z]) == pytest.approx(results["start"]["root_height_m"], abs=1e-5)
+    assert float(found.initial_pose[z]) == pytest.approx(  # the motion's height on the test person's legs
+        results["start"]["root_height_m"] * leg_length(found.body) / results["start"]["root_height_legs_m"], abs=1e-5)
 
 
 def test_an_automatic_start_without_a_manifold_tracker_fits_one(sequences):

@@ -191,6 +191,16 @@ def test_protocol_command_refuses_an_unknown_subject_and_a_missing_folder(tmp_pa
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
 
 
+def test_protocol_command_passes_its_start_to_every_fold(tmp_path, monkeypatch):
+    """``--start auto`` reaches the experiment's config (``truth`` by default)."""
+    seen = []
+    monkeypatch.setattr("jaxtrack.experiment.run_protocol", lambda protocol, data, out, config, **kw: seen.append(config) or [])
+    (tmp_path / "data").mkdir()
+    for extra in ([], ["--start", "auto"]):
+        assert main(["protocol", "walk-loso", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "o"), *extra]) == 0
+    assert [c.start for c in seen] == ["truth", "auto"]
+
+
 @pytest.mark.slow  # converts four takes and fits two manifolds: about a minute on 2 cores
 @pytest.mark.shared_data
 def test_a_protocol_runs_end_to_end_and_resumes(shared_data, tmp_path):

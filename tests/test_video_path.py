@@ -116,6 +116,28 @@ def test_start_search_settings_are_checked():
         StartSearch(particles=0)
 
 
+def test_the_automatic_start_holds_the_root_at_the_motion_s_height_on_the_person_s_legs():
+    """``root_height_legs``: where the body is the person's own (the file's skeleton), the root
+    is held at the motion's height times their legs over the motion's; on a guessed body (the
+    default) at the motion's height as given."""
+    from jaxtrack.manifold import make_gpdm
+    from jaxtrack.tracking import StartSearch, leg_length
+
+    motion, _, scene = small_scene(num_frames=6, width=40, height=30, noisy=False)
+    model = make_gpdm([np.asarray(motion.pose)[:, 6:]], 2)
+    tall = scene.replace(skeleton_offsets=1.1 * np.asarray(scene.body().skeleton.offsets), joints3d=None)
+    search = StartSearch(particles=8, layers=1)
+    common = {"key": jax.random.key(0), "start": "auto", "start_model": model, "root_height": 0.9, "start_search": search}
+    own = prepare_test(tall, "tall", root_height_legs=0.8, **common)
+    assert own.body_source == "file" and leg_length(own.body) == pytest.approx(1.1 * leg_length(scene.body()), rel=1e-5)
+    root_z = list(own.body.skeleton.pose_layout).index("root_z")
+    assert float(own.initial_pose[root_z]) == pytest.approx(0.9 * leg_length(own.body) / 0.8, abs=1e-5)
+    guessed = prepare_test(tall, "guessed", body="default", root_height_legs=0.8, **common)
+    assert float(guessed.initial_pose[root_z]) == pytest.approx(0.9, abs=1e-6)
+    unscaled = prepare_test(tall, "unscaled", **common)  # no legs given: the height as given
+    assert float(unscaled.initial_pose[root_z]) == pytest.approx(0.9, abs=1e-6)
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_the_automatic_start_lands_near_the_truth_without_reading_it():
     from jaxtrack.manifold import make_gpdm

@@ -30,6 +30,7 @@ from ..tracking import (
     fit_manifold,
     fit_tracker,
     get_tracker,
+    leg_length,
     method_problems,
     motion_clearance,
     motion_data,
@@ -136,8 +137,9 @@ class ExperimentInputs:
         tests: the test ``Sequence``s.
         window: the likelihood's window, shared by the test scenes (``shared_window``).
         donors: the training and validation takes' bodies (``prepare_test``'s ``donors``).
-        root_height: the validation motion's mean root height (metres): where the automatic
-            start holds the root.
+        root_height, root_height_legs: the validation motion's mean root height and its
+            bodies' mean leg length (metres): the automatic start holds the root at the first
+            scaled by the test body's legs over the second (``tracking.prepare_test``).
         manifolds: per ``(kind, latent_dim)``, the manifold ``fit_methods`` fitted.
     """
 
@@ -151,6 +153,7 @@ class ExperimentInputs:
     window: object = "auto"
     donors: list = dataclasses.field(default_factory=list)
     root_height: float | None = None
+    root_height_legs: float | None = None
     manifolds: dict = dataclasses.field(default_factory=dict)
 
 
@@ -194,7 +197,7 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     clearance = motion_clearance(validation, validation_poses, skeletons=[motion_subjects[n].body.skeleton for n in validation_names])
     inputs = ExperimentInputs(train_poses, validation_poses, motion_subjects, [], test_names, clearance, tests=list(test),
                               window=shared_window(test, config.frames, config.resolution), donors=donors,
-                              root_height=validation_root_height([motion_subjects[n] for n in validation_names]))
+                              **validation_root_height([motion_subjects[n] for n in validation_names]))
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
         _warn_unreachable(resolved, name, results)
@@ -203,11 +206,14 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     return inputs
 
 
-def validation_root_height(subjects) -> float:
-    """The mean root height (metres) over the validation takes' poses (``SubjectBody`` each,
-    its own pose layout): where the automatic start holds the root (``tracking.automatic_start``)."""
+def validation_root_height(subjects) -> dict:
+    """The validation takes' mean root height over their frames and their bodies' leg length
+    (``tracking.leg_length``) averaged the same way, metres (``SubjectBody`` each, its own pose
+    layout): ``{"root_height": ..., "root_height_legs": ...}``, where the automatic start holds
+    the root (``tracking.prepare_test``)."""
     heights = [s.poses[:, list(s.body.skeleton.pose_layout).index("root_z")] for s in subjects]
-    return float(np.mean(np.concatenate(heights)))
+    legs = [np.full(len(h), leg_length(s.body)) for s, h in zip(subjects, heights)]
+    return {"root_height": float(np.mean(np.concatenate(heights))), "root_height_legs": float(np.mean(np.concatenate(legs)))}
 
 
 def prepare_scenes(inputs: ExperimentInputs, config: ExperimentConfig, results: dict, *, start_model=None,
@@ -220,7 +226,7 @@ def prepare_scenes(inputs: ExperimentInputs, config: ExperimentConfig, results: 
     key = jax.random.key(config.seed)
     scenes = [prepare_test(seq, name, key=key, frames=config.frames, window=inputs.window, donors=inputs.donors, say=say,
                            ground_clearance=inputs.clearance, start=config.start, start_model=start_model,
-                           root_height=inputs.root_height, **config.scene_options())
+                           root_height=inputs.root_height, root_height_legs=inputs.root_height_legs, **config.scene_options())
               for seq, name in zip(inputs.tests, inputs.test_names)]
     for scene, name in zip(scenes, inputs.test_names):
         results["likelihoods"][name] = {"name": config.likelihood, "options": dict(config.likelihood_options),
@@ -255,7 +261,8 @@ def start_manifold(inputs: ExperimentInputs, config: ExperimentConfig, results: 
         latent_dim = model.latent_dim
         say(f"start manifold: {type(model).__name__} on {int(model.data.shape[0])} training frames, latent dim {latent_dim}, "
             f"objective {info.objective:.6g} after {info.steps} steps (no tracker runs on a manifold)")
-    results["start"] = {"kind": "auto", "manifold": manifold_label(kind, latent_dim), "root_height_m": inputs.root_height}
+    results["start"] = {"kind": "auto", "manifold": manifold_label(kind, latent_dim), "root_height_m": inputs.root_height,
+                        "root_height_legs_m": inputs.root_height_legs}
     return model
 
 

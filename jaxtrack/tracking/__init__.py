@@ -70,8 +70,10 @@ from ._start import triangulate as triangulate
 from ._subject import BODY_CHOICES as BODY_CHOICES
 from ._subject import BODY_SOURCES as BODY_SOURCES
 from ._subject import CALIBRATION_PRIORS as CALIBRATION_PRIORS
+from ._subject import OWN_BODY_SOURCES as OWN_BODY_SOURCES
 from ._subject import SubjectBody as SubjectBody
 from ._subject import check_offsets_match_joints as check_offsets_match_joints
+from ._subject import leg_length as leg_length
 from ._subject import limb_lengths_of as limb_lengths_of
 from ._subject import motion_subjects_prior as motion_subjects_prior
 from ._subject import subject_body as subject_body

@@ -71,7 +71,15 @@ from ._refine_body import refine_frame_count, spread_frames, track_and_refine_bo
 from ._registry import Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
-from ._subject import CALIBRATION_PRIORS, SubjectBody, limb_lengths_of, motion_subjects_prior, subject_body
+from ._subject import (
+    CALIBRATION_PRIORS,
+    OWN_BODY_SOURCES,
+    SubjectBody,
+    leg_length,
+    limb_lengths_of,
+    motion_subjects_prior,
+    subject_body,
+)
 
 TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
@@ -379,7 +387,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                  pixel_samples: int | str | None = None, body: str = "auto", height: float | None = None, donors=(),
                  calibration_frames: int = CALIBRATION_FRAMES, ground_clearance: float | None = None, say=None,
                  likelihood: str = DEFAULT_LIKELIHOOD, likelihood_options: Mapping[str, Any] | None = None,
-                 start: str = "truth", start_model=None, root_height: float | None = None,
+                 start: str = "truth", start_model=None, root_height: float | None = None, root_height_legs: float | None = None,
                  start_search: StartSearch | None = None, fit_radii: bool | None = None,
                  calibration_prior: str = "default") -> TestScene:
     """Validate a test sequence and build its likelihood and observations (the first
@@ -420,7 +428,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
 
     ``start="truth"`` starts from frame 0's ground truth; ``"auto"`` finds the start from the
     first frame's images (``automatic_start`` on ``start_model``'s latent space with the root
-    at ``root_height``, before any body calibration, which then starts from it), and a file
+    at ``root_height``, scaled by the person's legs over ``root_height_legs`` (the leg length,
+    ``leg_length``, of the body it was measured on) where the body is the person's own
+    (``OWN_BODY_SOURCES``); before any body calibration, which then starts from it), and a file
     without ground truth is accepted (the scene's ``truth_poses`` and ``truth_joints`` are then
     None)."""
     check_key(key)
@@ -492,6 +502,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             searched = ObservationPart(searched, "silhouettes") if isinstance(observations, dict) else searched
             say(f"{name}: the automatic start searched with the silhouette likelihood (the {recipe.name} likelihood's "
                 "evidence needs a start)")
+        if root_height_legs is not None and resolved.source in OWN_BODY_SOURCES:
+            # another person's stance on this person's legs (a root held 8 cm low was never recovered: docs/subjects.md)
+            root_height = root_height * leg_length(body_model) / root_height_legs
+            say(f"{name}: the automatic start holds the root at {root_height:.3f} m (the motion's height on this body's legs)")
         initial_pose, found = automatic_start(
             jax.random.fold_in(key, START_TAG), searched, jax.tree.map(jnp.asarray, observations), start_model, rig,
             body_model.skeleton, root_height=root_height, search=start_search or StartSearch(),
@@ -797,8 +811,8 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     validation_poses = validation_subject.poses
     clearance = motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton])
     scene = prepare_test(sequence, name, key=key, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
-                         start=spec.start, start_model=model, root_height=root_height, ground_clearance=clearance,
-                         **spec.scene_options())
+                         start=spec.start, start_model=model, root_height=root_height,
+                         root_height_legs=leg_length(validation_subject.body), ground_clearance=clearance, **spec.scene_options())
     say(f"{name}: body {scene.body_source}"
         + ("" if np.isnan(scene.start_error_mm) else f"; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth"))
     starts = header.get("sequence_starts")

@@ -118,9 +118,11 @@ class TrackingSpec:
             every tracker on a manifold (``jaxtrack.dynamics.GaitRate``: each particle steps its
             dynamics 0, 1 or 2 times a frame at its own cadence); 0 (the default): none.
             Tried across people and not kept: docs/subjects.md, "Tried: a gait rate per particle".
-        start: where ``track_sequence`` starts (``tracking.START_CHOICES``): "truth" (frame 0's
-            ground truth) or "auto" (``tracking.automatic_start``: found from the first frame's
-            images on the model's latent space; no ground truth needed).
+        start: where ``track_sequence`` and the experiment start (``tracking.START_CHOICES``):
+            "truth" (frame 0's ground truth) or "auto" (``tracking.automatic_start``: found from
+            the first frame's images on the model's latent space, in the experiment on the
+            first manifold its trackers run on, ``experiment.start_manifold``; no ground truth
+            needed).
 
     Raises:
         ConfigurationError: on any setting out of its range, an unknown manifold kind or

@@ -11,7 +11,8 @@
    around, and half of the particles within 0.5 rad of the keypoints' heading when there is
    one: in small images the hips are a few pixels apart) and its floor position (+- 0.2 m around
    the triangulated one), scored by the tracking likelihood on the first ``frames`` frames
-   together. The root's height is held at the validation motion's mean (``height_spread`` 0):
+   together. The root's height is held at ``root_height`` (``height_spread`` 0; the validation
+   motion's mean, on the person's own legs where ``prepare_test`` knows them):
    one frame's silhouettes trade the height for the knees' bend, and a search that moved it
    left the root 4-7 cm low on filmed silhouettes, an offset the tracker then carried for the
    whole take (docs/video.md); the tracker moves it from there. The noise of each layer

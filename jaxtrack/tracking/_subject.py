@@ -126,11 +126,21 @@ class SubjectBody:
         return out
 
 
+OWN_BODY_SOURCES = ("file", "fitted to joints", "training take")  # the person's own skeleton, not a guess
+
+
 def limb_lengths_of(body: BodyModel) -> dict[str, float]:
     """Limb lengths (metres) of a body's skeleton, left and right averaged."""
     lengths = np.linalg.norm(np.asarray(body.skeleton.offsets, np.float64), axis=1)
     index = {n: i for i, n in enumerate(body.skeleton.joint_names)}
     return {limb: float(np.mean([lengths[index[b]] for _, b in pairs])) for limb, pairs in LIMB_SEGMENTS.items()}
+
+
+def leg_length(body: BodyModel) -> float:
+    """Thigh plus shin (metres, left and right averaged): what a walker's root height scales with
+    (the CMU walkers' mean root height is 1.02-1.05 times it)."""
+    lengths = limb_lengths_of(body)
+    return lengths["thigh"] + lengths["shin"]
 
 
 def motion_subjects_prior(donors) -> tuple[dict[str, float] | None, np.ndarray | None]:
