@@ -222,7 +222,8 @@ def prepare_scenes(inputs: ExperimentInputs, config: ExperimentConfig, results: 
     where ``config.ground_prior``; records their likelihoods, bodies and ground priors in
     ``results``. ``config.start == "auto"``: each scene's start is found from its first frame
     on ``start_model``'s latent space (``tracking.automatic_start``), the root at
-    ``inputs.root_height``; every tracker then starts from it."""
+    ``inputs.root_height`` (scaled to the test person's legs where the body is their own);
+    every tracker then starts from it."""
     key = jax.random.key(config.seed)
     scenes = [prepare_test(seq, name, key=key, frames=config.frames, window=inputs.window, donors=inputs.donors, say=say,
                            ground_clearance=inputs.clearance, start=config.start, start_model=start_model,
@@ -455,8 +456,9 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
         "ik_residual_mm" (per file with joints, the residual's mean, max and per-joint figures),
         "likelihoods" (per test sequence, the registered likelihood's name, options, class and
         pixel samples), "refused" (per method that could not run on these data, the reason: every other method
-        still runs), "warnings" (files whose skeleton cannot reach their joints)
-        and "estimates" (first run's poses and joints).
+        still runs), "warnings" (files whose skeleton cannot reach their joints), "start" (``{"kind":
+        "truth"}``, or with ``config.start == "auto"`` the manifold searched and the root height
+        held, ``start_manifold``) and "estimates" (first run's poses and joints).
     """
     config = ExperimentConfig() if config is None else config
     say = print if progress else (lambda *a, **k: None)
