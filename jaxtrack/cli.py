@@ -67,12 +67,15 @@ def _convert(args) -> int:
             except json.JSONDecodeError as err:
                 raise ConfigurationError(f"{args.mapping}:{err.lineno}: not valid JSON ({err.msg}, column {err.colno})") from None
     report = convert_motion(
-        args.source, args.out, fps=args.fps, asf=args.asf, source_fps=args.source_fps, mapping=mapping, seed=args.seed, verbose=True
+        args.source, args.out, fps=args.fps, asf=args.asf, source_fps=args.source_fps, mapping=mapping, seed=args.seed,
+        level_floor=args.level_floor, verbose=True
     )
     print(
         f"wrote {args.out}: {report.num_frames} frames at {report.sequence.fps:g} Hz; inverse-kinematics residual "
         f"mean {report.mean_residual_mm:.1f} mm, max {report.max_residual_mm:.1f} mm"
     )
+    if not report.levelled and report.floor.worth_levelling:
+        print(f"note: {report.floor.describe()}; the trackers' floor is level (pass --level-floor to level the motion)")
     return 0
 
 
@@ -412,7 +415,7 @@ def _protocol(args) -> int:
     rows = run_protocol(protocol, args.data, args.out, config, modes=tuple(args.modes), subjects=args.subjects, views=args.views,
                         size=args.image_size, renderer=args.renderer,
                         azimuth=args.azimuth[0] if len(args.azimuth) == 1 else args.azimuth, centre=args.centre_subjects,
-                        progress=True)
+                        level_floor=args.level_floor, progress=True)
     from .experiment import protocol_table
 
     print()
@@ -817,6 +820,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--source-fps", type=float, help="frame rate of the source (required for AMC; CMU: 120)")
     convert.add_argument("--mapping", help="JSON file: HumanEva joint -> source joint name(s) (CMU and Bandai are built in)")
     convert.add_argument("--seed", type=_seed, default=0, help="PRNG seed for the IK restarts (default: %(default)s)")
+    convert.add_argument("--level-floor", action="store_true",
+                         help="rotate the motion so that the floor under its stance foot is level (a capture whose "
+                              "vertical is not the floor's normal: docs/floor.md, 'A tilted capture')")
     convert.set_defaults(run=_convert)
 
     scene = sub.add_parser("scene", help="render a sequence's motion into synthetic multi-view silhouettes (a test sequence)")
@@ -927,6 +933,10 @@ def build_parser() -> argparse.ArgumentParser:
                           help="take each training subject's posture out of its takes (its mean joint angles replaced by "
                                "the training takes' pooled mean), so the manifold learns the gait and not the people "
                                "(docs/subjects.md, \"A person's own posture\")")
+    protocol.add_argument("--level-floor", action=argparse.BooleanOptionalAction, default=True,
+                          help="level every take onto the floor under its stance foot when converting it: CMU 07's "
+                               "capture rises 1.1 degrees along its walks, the trackers' floor is level (docs/floor.md, "
+                               "'A tilted capture'; default: on)")
     protocol.add_argument("--views", type=_at_least(1, 64), default=3, help="cameras (default: %(default)s)")
     protocol.add_argument("--azimuth", type=_finite_float, nargs="+", default=[45.0], metavar="DEG",
                           help="the first camera's direction from the capture area's centre, degrees from the x axis, the "

@@ -248,3 +248,26 @@ def test_error_curves_are_drawn_when_every_method_was_refused(tmp_path):
     results = {"sequences": {"walk": {}, "jog": {"sir": {"per_frame_error_mm": [10.0, 12.0, 11.0]}}}}
     path = plot_error_curves(results, str(tmp_path / "curves.png"))
     assert (tmp_path / "curves.png").stat().st_size > 1000 and path.endswith("curves.png")
+
+
+def test_the_experiment_warns_of_a_file_whose_floor_is_tilted(sequences, capsys):
+    """The ground prior's floor is level: a file whose joints climb a tilted floor is named in
+    ``results["warnings"]`` (with what to do), a level one is not."""
+    from jaxtrack.experiment import prepare_inputs
+    from jaxtrack.io import fit_floor, levelling_rotation
+
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir",), budget=40, runs=1, fit_steps=5, frames=3)
+    walk = train[0]
+    floor = fit_floor(walk.joints3d, list(walk.joint_names))
+    assert floor.seen and not floor.worth_levelling
+    climbing = (np.asarray(walk.joints3d) - floor.pivot) @ levelling_rotation([0.0, 0.02]) + floor.pivot  # 1.15 degrees
+    for seq, warned in ((walk, False), (walk.replace(joints3d=climbing), True)):
+        results = {k: {} for k in ("ik_residual_mm", "likelihoods", "bodies", "ground_prior", "manifolds", "dynamics")}
+        results.update(refused={}, manifold=None, start=None)
+        prepare_inputs([seq, train[1]], validation, test, config, results, names={"train": ["climb.npz", "jog.npz"]},
+                       say=lambda *a: None)
+        tilted = [w for w in results.get("warnings", []) if "floor" in w]
+        assert bool(tilted) == warned
+    assert tilted[0].startswith("climb.npz: the floor tilts") and "--level-floor" in tilted[0]
+    assert "warning: climb.npz: the floor tilts" in capsys.readouterr().out

@@ -165,6 +165,7 @@ def test_the_table_verdicts_are_computed_from_the_rows():
     assert "5 runs, each training subject's posture taken out; mean" in protocol_table([dict(r, centre_subjects=True) for r in rows])
     assert "no ground truth" not in table
     assert "5 runs, the start found from the first frame's silhouettes" in protocol_table([dict(r, start="auto") for r in rows])
+    assert "5 runs, each take levelled onto its floor; mean" in protocol_table([dict(r, level_floor=True) for r in rows])
 
 
 @pytest.mark.shared_data
@@ -191,14 +192,16 @@ def test_protocol_command_refuses_an_unknown_subject_and_a_missing_folder(tmp_pa
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
 
 
-def test_protocol_command_passes_its_start_to_every_fold(tmp_path, monkeypatch):
-    """``--start auto`` reaches the experiment's config (``truth`` by default)."""
+def test_protocol_command_passes_its_start_and_its_floor_to_every_fold(tmp_path, monkeypatch):
+    """``--start auto`` reaches the experiment's config (``truth`` by default); the takes are
+    levelled onto their floors unless ``--no-level-floor``."""
     seen = []
-    monkeypatch.setattr("jaxtrack.experiment.run_protocol", lambda protocol, data, out, config, **kw: seen.append(config) or [])
+    monkeypatch.setattr("jaxtrack.experiment.run_protocol",
+                        lambda protocol, data, out, config, **kw: seen.append((config, kw["level_floor"])) or [])
     (tmp_path / "data").mkdir()
-    for extra in ([], ["--start", "auto"]):
+    for extra in ([], ["--start", "auto"], ["--no-level-floor"]):
         assert main(["protocol", "walk-loso", "--data", str(tmp_path / "data"), "--out", str(tmp_path / "o"), *extra]) == 0
-    assert [c.start for c in seen] == ["truth", "auto"]
+    assert [(c.start, level) for c, level in seen] == [("truth", True), ("auto", True), ("truth", False)]
 
 
 @pytest.mark.slow  # converts four takes and fits two manifolds: about a minute on 2 cores
@@ -223,7 +226,7 @@ def test_a_protocol_runs_end_to_end_and_resumes(shared_data, tmp_path):
     # The silhouettes are the same scene in both folds; the converted files carry the subject.
     from jaxtrack.io import load_sequence
 
-    assert load_sequence(str(tmp_path / "converted" / "HDM_bd_jogLeftCircle4StepsRstart_001_120.npz")).subject == "hdm05-bd"
+    assert load_sequence(str(tmp_path / "converted-levelled" / "HDM_bd_jogLeftCircle4StepsRstart_001_120.npz")).subject == "hdm05-bd"
     said.clear()
     again = run_protocol(small, shared_data, str(tmp_path), config, subjects=["hdm05-bd"], say=said.append)
     assert again == json.loads(json.dumps(rows)) and sum("already" in s for s in said) == 2

@@ -36,7 +36,7 @@ FOLD_MODES = ("cross", "within")
 RENDERERS = ("solid", "capsules")
 DEFAULT_AZIMUTH = 45.0  # degrees: the default rig's first camera (camera.default_rig)
 # what a row written before the setting existed ran with
-SETTING_DEFAULTS = {"azimuth": DEFAULT_AZIMUTH, "centre_subjects": False, "start": "truth"}
+SETTING_DEFAULTS = {"azimuth": DEFAULT_AZIMUTH, "centre_subjects": False, "start": "truth", "level_floor": False}
 OTHER_RADII = {"torso": 1.2, "legs": 0.85, "arms": 1.1, "head": 1.0}
 """The capsule renderer's radii, as factors of the subject's default radii per capsule group
 (the real-motion tables' mismatched body, benchmarks/real_motion.py)."""
@@ -233,9 +233,12 @@ def load_take_motion(take: Take, data_folder: str):
     return load_motion(source, asf=asf, source_fps=take.fps)
 
 
-def convert_takes(takes, data_folder: str, folder: str, *, fps: float = 60.0, seed: int = 0, say=print) -> dict:
+def convert_takes(takes, data_folder: str, folder: str, *, fps: float = 60.0, seed: int = 0, level_floor: bool = False,
+                  say=print) -> dict:
     """Convert every take once into ``folder/<name>.npz`` (``io.convert_motion`` at ``fps``,
-    the sequence's ``subject`` set); files already there are read, not converted again.
+    the sequence's ``subject`` set, each take levelled onto its floor with ``level_floor``);
+    files already there are read, not converted again (keep levelled and unlevelled takes in
+    separate folders).
 
     Returns:
         ``{take name: Sequence}``.
@@ -247,10 +250,10 @@ def convert_takes(takes, data_folder: str, folder: str, *, fps: float = 60.0, se
     for take in takes:
         path = os.path.join(folder, f"{take.name}.npz")
         if not os.path.exists(path):
-            report = convert_motion(load_take_motion(take, data_folder), None, fps=fps, seed=seed)
+            report = convert_motion(load_take_motion(take, data_folder), None, fps=fps, seed=seed, level_floor=level_floor)
             save_sequence(path, report.sequence.replace(subject=take.subject))
             say(f"converted {take.subject} {take.name}: {report.num_frames} frames at {fps:g} Hz, inverse-kinematics residual "
-                f"{report.mean_residual_mm:.1f} mm")
+                f"{report.mean_residual_mm:.1f} mm; {report.floor.describe()}{', levelled' if report.levelled else ''}")
         sequences[take.name] = load_sequence(path)
     return sequences
 
@@ -372,7 +375,7 @@ def _fold_row(fold: Fold, results: dict, config: ExperimentConfig, seconds: floa
 
 def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, config: ExperimentConfig, *, modes=FOLD_MODES,
                  subjects=None, views: int = 3, size: tuple[int, int] = (80, 60), renderer: str = "solid",
-                 azimuth: float | Sequence[float] = DEFAULT_AZIMUTH, centre: bool = False,
+                 azimuth: float | Sequence[float] = DEFAULT_AZIMUTH, centre: bool = False, level_floor: bool = True,
                  progress: bool = False, say=print) -> list[dict]:
     """Run the protocol's folds end to end and write ``out_dir/protocol.json`` and
     ``out_dir/table.md`` after each fold (each fold's own experiment outputs in
@@ -387,6 +390,10 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
             first camera's direction in degrees, or one per camera).
         centre: take each training subject's posture out of its takes (``centre_subjects``);
             the nearest training pose is then measured on the centred takes.
+        level_floor: level every take onto the floor under its stance foot when converting it
+            (``io.fit_floor``; the takes in ``out_dir/converted-levelled``, otherwise in
+            ``out_dir/converted``): the trackers' floor is level, CMU subject 07's is not
+            (docs/floor.md, "A tilted capture").
 
     Returns:
         one row per fold (``protocol_table`` draws them).
@@ -405,11 +412,12 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
         raise ConfigurationError(str(error)) from None
     folds = protocol.folds(modes, subjects)  # unknown subjects refused before any conversion
     check_folder(out_dir)
-    sequences = convert_takes(protocol.takes(), data_folder, os.path.join(out_dir, "converted"), seed=config.seed, say=say)
+    sequences = convert_takes(protocol.takes(), data_folder, os.path.join(out_dir, "converted-levelled" if level_floor else "converted"),
+                              seed=config.seed, level_floor=level_floor, say=say)
     settings = {"views": views, "size": list(size), "renderer": renderer, "azimuth": azimuth,
                 "seed": config.seed, "test_frames": protocol.test_frames,
                 "train_frames": protocol.train_frames, "methods_requested": list(config.methods), "centre_subjects": bool(centre),
-                "start": config.start}
+                "start": config.start, "level_floor": bool(level_floor)}
     json_path = os.path.join(out_dir, "protocol.json")
     rows = []
     if os.path.exists(json_path):
@@ -536,6 +544,7 @@ def protocol_table(rows: list[dict], *, title: str = "") -> str:
     first = ("" if azimuth == DEFAULT_AZIMUTH else f" (the first at {azimuth:g} degrees)" if np.ndim(azimuth) == 0
              else f" (at {', '.join(f'{a:g}' for a in azimuth)} degrees)")
     centred = ", each training subject's posture taken out" if settings.get("centre_subjects") else ""
+    centred += ", each take levelled onto its floor" if settings.get("level_floor") else ""
     started = (", the start found from the first frame's silhouettes on each fold's first manifold (no ground truth)"
                if settings.get("start") == "auto" else "")
     lines = [title, "", f"{settings['views']} views{first}, {settings['size'][0]}x{settings['size'][1]}, {settings['renderer']} renderer, "

@@ -20,6 +20,7 @@ import numpy as np
 from ..body import part_group_indices
 from ..evaluation import mean_joint_error_mm, per_frame_error_mm, per_group_error_mm
 from ..image import downsample_silhouettes
+from ..io import fit_floor
 from ..likelihood import get_likelihood, suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
@@ -157,6 +158,20 @@ class ExperimentInputs:
     manifolds: dict = dataclasses.field(default_factory=dict)
 
 
+def _warn_tilted_floor(seq, name: str, results: dict) -> None:
+    """Print (and record) a warning where a file's joints walk on a tilted floor: the ground
+    prior's floor is level (``io.fit_floor``; docs/floor.md, "A tilted capture")."""
+    names = None if seq.joint_names is None else [str(n) for n in seq.joint_names]
+    if seq.joints3d is None or names is None or not {"lankle", "rankle"} <= set(names):
+        return
+    floor = fit_floor(seq.joints3d, names)
+    if floor.worth_levelling:
+        message = (f"{name}: {floor.describe()}; the trackers' floor is level, so the ground prior holds the feet "
+                   "at the wrong height there (convert it with --level-floor)")
+        results.setdefault("warnings", []).append(message)
+        print(f"warning: {message}")
+
+
 def _new_results(config: ExperimentConfig) -> dict:
     return {"config": config.as_dict(), "complete": False, "manifold": None, "manifolds": {}, "dynamics": {}, "velocity": {},
             "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {}, "estimates": {},
@@ -201,6 +216,8 @@ def prepare_inputs(train, validation, test, config: ExperimentConfig, results: d
     for name, resolved in motion_subjects.items():
         results["ik_residual_mm"][name] = resolved.summary().get("ik_residual_mm")
         _warn_unreachable(resolved, name, results)
+    for seq, name in [*zip(train, train_names), *zip(validation, validation_names), *zip(test, test_names)]:
+        _warn_tilted_floor(seq, name, results)
     if config.start == "truth":
         prepare_scenes(inputs, config, results, say=say)
     return inputs

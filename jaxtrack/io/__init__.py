@@ -17,6 +17,10 @@ from ._calibration import save_calibration as save_calibration
 from ._convert import ConversionReport as ConversionReport
 from ._convert import convert_motion as convert_motion
 from ._convert import load_motion as load_motion
+from ._floor import FloorFit as FloorFit
+from ._floor import fit_floor as fit_floor
+from ._floor import level_joints as level_joints
+from ._floor import levelling_rotation as levelling_rotation
 from ._gpmat import GPMAT_TEST_TRIALS as GPMAT_TEST_TRIALS
 from ._gpmat import GPMAT_TRAIN_TRIALS as GPMAT_TRAIN_TRIALS
 from ._gpmat import read_gpmat_trials as read_gpmat_trials

@@ -14,6 +14,7 @@ from ..body import inverse_kinematics, retarget_positions
 from ..errors import ConfigurationError
 from ._asf_amc import load_asf_amc
 from ._bvh import load_bvh
+from ._floor import FloorFit, fit_floor, level_joints
 from ._joints import load_joints3d, resample
 from ._mocap import MotionCapture
 from ._sequence import Sequence, save_sequence
@@ -30,6 +31,8 @@ class ConversionReport:
     max_residual_mm: float
     residual_per_joint_mm: np.ndarray
     limb_lengths: dict
+    floor: FloorFit | None = None
+    levelled: bool = False
 
 
 def load_motion(source: str, *, asf: str | None = None, source_fps: float | None = None):
@@ -89,6 +92,7 @@ def convert_motion(
     source_fps: float | None = None,
     mapping: dict | None = None,
     seed: int = 0,
+    level_floor: bool = False,
     verbose: bool = False,
 ) -> ConversionReport:
     """Convert a motion file (or a loaded ``MotionCapture``) to a sequence file (``out``; not
@@ -100,6 +104,9 @@ def convert_motion(
         source_fps: the source frame rate (required for AMC).
         mapping: HumanEva joint -> source joint(s); guessed for CMU and Bandai skeletons.
         seed: PRNG seed of the inverse kinematics' first-frame restarts.
+        level_floor: rotate the motion so that the floor under its stance foot is level
+            (``fit_floor``, ``level_joints``; docs/floor.md, "A tilted capture"). The floor's
+            fit is reported either way (``ConversionReport.floor``, of the source).
     """
     if isinstance(source, MotionCapture):
         motion = source if source_fps is None else dataclasses.replace(source, fps=float(source_fps))
@@ -113,7 +120,12 @@ def convert_motion(
     check_motion_units(joints, str(source))
     target_fps = float(fps) if fps is not None else motion.fps
     joints = resample(joints, motion.fps, target_fps)
+    floor = fit_floor(joints)
+    levelled = bool(level_floor and floor.seen and floor.slope > 0.0)
+    if levelled:
+        joints = level_joints(joints, floor)
     if verbose:
+        print(f"{source}: {floor.describe()}" + ("; levelled" if levelled else ""))
         print(f"{source}: {motion.num_frames} frames at {motion.fps:g} Hz -> {joints.shape[0]} at {target_fps:g} Hz; fitting poses")
     result = inverse_kinematics(joints, key=jax.random.key(seed))
     skeleton = result.skeleton
@@ -138,4 +150,6 @@ def convert_motion(
         max_residual_mm=float(residual.max()),
         residual_per_joint_mm=residual.mean(axis=0),
         limb_lengths=lengths,
+        floor=floor,
+        levelled=levelled,
     )
