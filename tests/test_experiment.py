@@ -103,7 +103,7 @@ def test_experiment_starts_automatically_without_the_truth(sequences):
     the first manifold the trackers run on (no ground truth read: changing frame 0's truth
     changes the start's error, never the start), the root at the validation motion's mean height;
     with no tracker on a manifold, a BC-GPLVM is fitted for the start alone."""
-    from jaxtrack.experiment import fit_methods, prepare_inputs, prepare_scenes, start_manifold
+    from jaxtrack.experiment import fit_methods, new_results, prepare_inputs, prepare_scenes, start_manifold
     from jaxtrack.tracking import leg_length
 
     train, validation, test = sequences
@@ -112,8 +112,7 @@ def test_experiment_starts_automatically_without_the_truth(sequences):
     bent[0, list(test[0].pose_layout).index("root_yaw")] += 0.5  # frame 0's truth turned by 0.5 rad
     scenes = []
     for seq in (test[0], test[0].replace(pose=bent, joints3d=None)):
-        results = {k: {} for k in ("ik_residual_mm", "likelihoods", "bodies", "ground_prior", "manifolds", "dynamics")}
-        results.update(refused={}, warnings=[], manifold=None, start=None)
+        results = new_results(config)
         inputs = prepare_inputs(train, validation, [seq], config, results, say=lambda *a: None)
         assert inputs.scenes == []  # built after the fits: the start searches a fitted manifold
         fit_methods(inputs, config, results, progress=False, say=lambda *a: None)
@@ -129,6 +128,25 @@ def test_experiment_starts_automatically_without_the_truth(sequences):
     z = list(test[0].pose_layout).index("root_z")
     assert float(found.initial_pose[z]) == pytest.approx(  # the motion's height on the test person's legs
         results["start"]["root_height_m"] * leg_length(found.body) / results["start"]["root_height_legs_m"], abs=1e-5)
+
+
+def test_the_stages_run_by_hand_give_the_experiment(sequences):
+    """``new_results`` then ``prepare_inputs``, ``fit_methods`` and ``track_methods``, as a caller
+    that keeps the prepared scenes runs them: the same errors as ``run_experiment`` for the same
+    config (the same keys), and the scene the runs tracked."""
+    from jaxtrack.experiment import fit_methods, new_results, prepare_inputs, track_methods
+
+    train, validation, test = sequences
+    config = ExperimentConfig(methods=("sir",), budget=40, runs=2, fit_steps=5, frames=3)
+    whole = run_experiment(train, validation, test, config, names={"test": ["walk"]}, progress=False)
+    results = new_results(config)
+    assert results["config"] == whole["config"] and results["sequences"] == {} and not results["complete"]
+    inputs = prepare_inputs(train, validation, test, config, results, names={"test": ["walk"]}, say=lambda *a: None)
+    track_methods(inputs, fit_methods(inputs, config, results, progress=False, say=lambda *a: None), config, results,
+                  say=lambda *a: None)
+    np.testing.assert_array_equal(results["sequences"]["walk"]["sir"]["error_mm_per_run"],
+                                  whole["sequences"]["walk"]["sir"]["error_mm_per_run"])
+    assert inputs.scenes[0].num_frames == 3 and inputs.scenes[0].start_error_mm < 5.0
 
 
 def test_an_automatic_start_without_a_manifold_tracker_fits_one(sequences):

@@ -19,6 +19,8 @@ from jaxtrack.experiment import (
     Take,
     centre_subjects,
     drift_ratio,
+    fold_takes,
+    fold_test_scene,
     protocol_table,
     run_protocol,
 )
@@ -122,6 +124,42 @@ def test_centring_takes_each_training_subject_s_posture_out():
                                          ProtocolSubject("b", takes["b1"], (Take("b", "b2", "b2.amc", 120.0),)))).fold("within", "a")
     kept, _ = centre_subjects(within, [walk], [walk])
     np.testing.assert_allclose(np.asarray(kept[0].pose), np.asarray(walk.pose), atol=1e-12)
+
+
+def test_a_fold_s_takes_and_scene_are_the_protocol_s():
+    """``fold_takes``: the training takes cut to the protocol's training frames, the validation
+    takes whole, centred on request as ``centre_subjects`` centres them. ``fold_test_scene``: the
+    test take's first ``test_frames`` frames, drawn with the key of its place among the protocol's
+    takes, so a subject's cross and within folds see the same silhouettes and another subject's
+    test take other ones."""
+    from helpers import small_experiment_sequences
+
+    (walk, jog), (validation,), _ = small_experiment_sequences()
+    takes = {name: Take(subject, name, f"{name}.amc", 120.0) for name, subject in (("a1", "a"), ("a2", "a"), ("a3", "a"),
+                                                                                   ("b1", "b"), ("b2", "b"))}
+    sequences = {"a1": walk, "a2": jog, "a3": validation, "b1": jog, "b2": walk}
+    protocol = SubjectProtocol("toy", "", (ProtocolSubject("a", takes["a1"], (takes["a2"],), takes["a3"]),
+                                           ProtocolSubject("b", takes["b1"], (takes["b2"],))), test_frames=3, train_frames=20)
+    cross = protocol.fold("cross", "a")
+    assert cross.names == {"train": ["b2"], "validation": ["b2"], "test": ["a1"]}
+    train, val = fold_takes(protocol, cross, sequences)
+    assert [x.num_frames for x in train] == [20] and val[0].num_frames == walk.num_frames == 30
+    np.testing.assert_array_equal(np.asarray(train[0].pose), np.asarray(walk.pose)[:20])
+    within = protocol.fold("within", "a")
+    train, val = fold_takes(protocol, within, sequences, centre=True)
+    expected = centre_subjects(within, [jog.cropped(20)], [validation])
+    np.testing.assert_array_equal(np.asarray(train[0].pose), np.asarray(expected[0][0].pose))
+    np.testing.assert_array_equal(np.asarray(val[0].pose), np.asarray(expected[1][0].pose))
+    options = {"views": 2, "size": (32, 24)}
+    a_cross, a_within = (fold_test_scene(protocol, fold, sequences, **options) for fold in (cross, within))
+    b_cross = fold_test_scene(protocol, protocol.fold("cross", "b"), sequences, **options)
+    assert a_cross.num_frames == 3 and a_cross.capsule_radii is None  # the radii withheld from the tracker
+    # the test take's first frames (the scene moves the walk's ground track into the rig's view)
+    np.testing.assert_allclose(np.asarray(a_cross.pose)[:, 2:], np.asarray(walk.pose)[:3, 2:], atol=1e-6)
+    np.testing.assert_array_equal(np.asarray(a_cross.silhouettes), np.asarray(a_within.silhouettes))
+    assert not np.array_equal(np.asarray(a_cross.silhouettes), np.asarray(b_cross.silhouettes))
+    other_seed = fold_test_scene(protocol, cross, sequences, seed=1, **options)
+    assert not np.array_equal(np.asarray(a_cross.silhouettes), np.asarray(other_seed.silhouettes))  # the noise is the seed's
 
 
 def _row(mode, subject, errors, budget=500):

@@ -14,6 +14,8 @@ from ._protocols import Take as Take
 from ._protocols import centre_subjects as centre_subjects
 from ._protocols import convert_takes as convert_takes
 from ._protocols import drift_ratio as drift_ratio
+from ._protocols import fold_takes as fold_takes
+from ._protocols import fold_test_scene as fold_test_scene
 from ._protocols import get_protocol as get_protocol
 from ._protocols import nearest_pose_floor_mm as nearest_pose_floor_mm
 from ._protocols import plot_protocol as plot_protocol
@@ -29,6 +31,7 @@ from ._report import write_progress as write_progress
 from ._run import ExperimentInputs as ExperimentInputs
 from ._run import dynamics_parameters as dynamics_parameters
 from ._run import fit_methods as fit_methods
+from ._run import new_results as new_results
 from ._run import prepare_inputs as prepare_inputs
 from ._run import prepare_scenes as prepare_scenes
 from ._run import run_experiment as run_experiment

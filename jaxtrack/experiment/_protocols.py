@@ -95,6 +95,11 @@ class Fold:
     def label(self) -> str:
         return f"{self.mode}-{self.subject}"
 
+    @property
+    def names(self) -> dict[str, list[str]]:
+        """The takes' names by role, as ``run_experiment``'s ``names`` takes them."""
+        return {"train": [t.name for t in self.train], "validation": [t.name for t in self.validation], "test": [self.test.name]}
+
 
 @dataclasses.dataclass(frozen=True)
 class SubjectProtocol:
@@ -323,6 +328,39 @@ def centre_subjects(fold: Fold, train: list, validation: list) -> tuple[list, li
     return ([centred(t, x) for t, x in zip(fold.train, train)], [centred(t, x) for t, x in zip(fold.validation, validation)])
 
 
+def _cropped(sequence, frames: int | None):
+    return sequence.cropped(min(frames, sequence.num_frames)) if frames else sequence
+
+
+def fold_takes(protocol: SubjectProtocol, fold: Fold, sequences: dict, *, centre: bool = False) -> tuple[list, list]:
+    """A fold's training takes (their first ``protocol.train_frames`` frames) and validation takes
+    (whole), as ``run_protocol`` trains on them; with ``centre``, each training subject's posture
+    taken out (``centre_subjects``).
+
+    Args:
+        sequences: take name -> converted ``Sequence`` (``convert_takes``).
+    """
+    train = [_cropped(sequences[t.name], protocol.train_frames) for t in fold.train]
+    validation = [sequences[t.name] for t in fold.validation]
+    return centre_subjects(fold, train, validation) if centre else (train, validation)
+
+
+def fold_test_scene(protocol: SubjectProtocol, fold: Fold, sequences: dict, *, seed: int = 0, views: int = 3,
+                    size: tuple[int, int] = (80, 60), renderer: str = "solid", azimuth: float | Sequence[float] = DEFAULT_AZIMUTH):
+    """A fold's test take rendered as ``run_protocol`` renders it (``render_test_take``, its first
+    ``protocol.test_frames`` frames): the key is ``fold_in(key(seed), i)``, ``i`` the test take's
+    index among ``protocol.takes()``, so a subject's cross and within folds track the same
+    silhouettes.
+
+    Args:
+        sequences: take name -> converted ``Sequence`` (``convert_takes``).
+    """
+    index = [t.name for t in protocol.takes()].index(fold.test.name)
+    key = jax.random.fold_in(jax.random.key(seed), index)
+    return render_test_take(key, sequences[fold.test.name], views=views, size=size, frames=protocol.test_frames,
+                            renderer=renderer, azimuth=azimuth)
+
+
 def drift_ratio(curve) -> float:
     """Mean error of the last quarter of the frames over that of the first quarter."""
     curve = np.asarray(curve, np.float64)
@@ -425,17 +463,9 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
             rows = [r for r in json.load(handle).get("rows", [])
                     if all(r.get(k, SETTING_DEFAULTS.get(k)) == v for k, v in settings.items())]
     config = dataclasses.replace(config, frames=None)
-    key = jax.random.key(config.seed)
-    def crop(take, frames):
-        seq = sequences[take.name]
-        return seq.cropped(min(frames, seq.num_frames)) if frames else seq
-
     for fold in folds:
-        train = [crop(t, protocol.train_frames) for t in fold.train]
-        validation = [sequences[t.name] for t in fold.validation]
-        if centre:
-            train, validation = centre_subjects(fold, train, validation)
-        floor = nearest_pose_floor_mm(train, crop(fold.test, protocol.test_frames))
+        train, validation = fold_takes(protocol, fold, sequences, centre=centre)
+        floor = nearest_pose_floor_mm(train, _cropped(sequences[fold.test.name], protocol.test_frames))
         done = [r for r in rows if r["mode"] == fold.mode and r["subject"] == fold.subject and r["budget"] == config.budget
                 and r["runs"] == config.runs]
         if done:
@@ -444,15 +474,13 @@ def run_protocol(protocol: SubjectProtocol, data_folder: str, out_dir: str, conf
             continue
 
         # One scene per test take: the same silhouettes in the cross and the within fold.
-        test_key = jax.random.fold_in(key, [t.name for t in protocol.takes()].index(fold.test.name))
-        scene = render_test_take(test_key, sequences[fold.test.name], views=views, size=size, frames=protocol.test_frames,
-                                 renderer=renderer, azimuth=azimuth)
+        scene = fold_test_scene(protocol, fold, sequences, seed=config.seed, views=views, size=size, renderer=renderer,
+                                azimuth=azimuth)
         say(f"{fold.label}: train {', '.join(t.name for t in fold.train)}; validation {', '.join(t.name for t in fold.validation)}; "
             f"test {fold.test.name} ({scene.num_frames} frames){'; ' + fold.note if fold.note else ''}")
         start = time.perf_counter()
         results = run_experiment(train, validation, [scene], config, out_dir=os.path.join(out_dir, fold.label),
-                                 names={"train": [t.name for t in fold.train], "validation": [t.name for t in fold.validation],
-                                        "test": [fold.test.name]}, progress=progress, animations=False)
+                                 names=fold.names, progress=progress, animations=False)
         row = _fold_row(fold, results, config, time.perf_counter() - start, settings)
         row["nearest_training_pose_mm"] = floor
         rows.append(row)

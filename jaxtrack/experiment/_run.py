@@ -172,7 +172,10 @@ def _warn_tilted_floor(seq, name: str, results: dict) -> None:
         print(f"warning: {message}")
 
 
-def _new_results(config: ExperimentConfig) -> dict:
+def new_results(config: ExperimentConfig) -> dict:
+    """The empty results of an experiment with ``config``: what ``prepare_inputs``,
+    ``prepare_scenes``, ``fit_methods`` and ``track_methods`` fill, for a caller that runs the
+    stages itself (e.g. to keep the prepared scenes, ``ExperimentInputs.scenes``)."""
     return {"config": config.as_dict(), "complete": False, "manifold": None, "manifolds": {}, "dynamics": {}, "velocity": {},
             "residual": {}, "sequences": {}, "refused": {}, "bodies": {}, "ik_residual_mm": {}, "estimates": {},
             "shape_calibration": {}, "ground_prior": {}, "likelihoods": {}, "start": None}
@@ -479,7 +482,7 @@ def run_experiment(train, validation, test, config: ExperimentConfig | None = No
     """
     config = ExperimentConfig() if config is None else config
     say = print if progress else (lambda *a, **k: None)
-    results = _new_results(config)
+    results = new_results(config)
     inputs = prepare_inputs(train, validation, test, config, results, names=names, say=say)
     fitted = fit_methods(inputs, config, results, progress=progress, say=say)
     if config.start == "auto":  # the start searched on a fitted manifold, the same for every tracker
