@@ -93,8 +93,9 @@ def main():
         ExperimentConfig,
         centre_subjects,
         convert_takes,
+        fold_takes,
+        fold_test_scene,
         get_protocol,
-        render_test_take,
         run_experiment,
     )
 
@@ -103,11 +104,6 @@ def main():
         protocol = protocol.without(*args.without)
     converted = os.path.join(tempfile.gettempdir(), f"jaxtrack_subject_posture_{args.protocol}")
     sequences = convert_takes(protocol.takes(), args.data, converted, say=lambda *a, **k: None)
-    key = jax.random.key(0)  # the protocol's scenes: run_protocol's keys at seed 0
-
-    def crop(take, frames):
-        sequence = sequences[take.name]
-        return sequence.cropped(min(frames, sequence.num_frames)) if frames else sequence
 
     def angles(sequence):
         return np.asarray(sequence.pose, np.float64)[:, GLOBAL_DOFS:]
@@ -115,14 +111,12 @@ def main():
     rows = []
     config = ExperimentConfig(methods=tuple(args.methods), budget=args.budget, runs=args.runs, seed=0)
     for fold in protocol.folds(args.modes, args.subjects):
-        train = [crop(t, protocol.train_frames) for t in fold.train]
-        validation = [sequences[t.name] for t in fold.validation]
-        test_key = jax.random.fold_in(key, [t.name for t in protocol.takes()].index(fold.test.name))
-        scene = render_test_take(test_key, sequences[fold.test.name], views=3, size=(80, 60), frames=protocol.test_frames)
-        names = {"train": [t.name for t in fold.train], "validation": [t.name for t in fold.validation], "test": [fold.test.name]}
+        train, validation = fold_takes(protocol, fold, sequences)
+        scene = fold_test_scene(protocol, fold, sequences)  # the protocol's scene at seed 0
+        names = fold.names
         pooled = np.concatenate([angles(x) for x in train]).mean(0)
         centred, c_validation = centre_subjects(fold, train, validation)
-        true_mean = angles(crop(fold.test, protocol.test_frames)).mean(0)
+        true_mean = angles(scene).mean(0)
         raw_angles = np.concatenate([angles(x) for x in train])
         centred_angles = np.concatenate([angles(x) for x in centred])
         row = {"fold": fold.label, "estimate": args.estimate, "budget": args.budget, "runs": args.runs,
