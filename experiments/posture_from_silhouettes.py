@@ -20,7 +20,7 @@ radians), how far the fitted ones are, their correlation with the true offset, a
 joint error of the fitted frames against the first pass's. ``--renderer own`` draws the test
 take with the tracker's own capsules (radii kept), the control: no body mismatch.
 
-    taskset -c 0,1 python experiments/posture_from_silhouettes.py --data ../shared/data --json posture.json    # 10 minutes
+    taskset -c 0,1 python experiments/posture_from_silhouettes.py --data ../shared/data --plot docs/figures/posture_offsets.png  # 6 min
     taskset -c 0,1 python experiments/posture_from_silhouettes.py --data ../shared/data --subjects cmu07 --renderer own
 """
 
@@ -108,6 +108,7 @@ def main():
     parser.add_argument("--radii", action="store_true")
     parser.add_argument("--exclude", nargs="*", default=[], help="joint angles whose name holds one of these keep no offset")
     parser.add_argument("--json")
+    parser.add_argument("--plot", help="a PNG of every joint angle's fitted and true offset, one panel per fold")
     args = parser.parse_args()
     import jax
     import jax.numpy as jnp
@@ -173,12 +174,40 @@ def main():
                "correlation": round(float(np.corrcoef(found, true_offset)[0, 1]), 2),
                "largest_moves_rad": {dof_names[i]: [round(float(found[i]), 3), round(float(true_offset[i]), 3)] for i in largest},
                "objective": [round(before, 1), round(after, 1)],
-               "radius_factors": None if factors is None else factors.round(3).tolist()}
+               "radius_factors": None if factors is None else factors.round(3).tolist(),
+               "offsets_rad": {"names": list(dof_names), "fitted": found.round(4).tolist(), "true": true_offset.round(4).tolist()}}
         rows.append(row)
         print(json.dumps(row), flush=True)
         if args.json:  # rewritten after every fold: an interruption keeps the folds done
             pathlib.Path(args.json).write_text(json.dumps(rows, indent=1), encoding="utf-8")
         jax.clear_caches()
+    if args.plot:
+        plot_offsets(rows, args.plot)
+
+
+def plot_offsets(rows, path):
+    """One panel per fold: each joint angle's fitted offset from the first pass against the
+    truth's (radians)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, axes = plt.subplots(len(rows), 1, figsize=(11, 2.6 * len(rows)), sharex=True, squeeze=False)
+    for ax, row in zip(axes[:, 0], rows):
+        offsets = row["offsets_rad"]
+        x = np.arange(len(offsets["names"]))
+        ax.bar(x - 0.2, offsets["true"], 0.4, label="the truth's posture less the first pass's", color="tab:green")
+        ax.bar(x + 0.2, offsets["fitted"], 0.4, label="fitted to the silhouettes", color="tab:red")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel("offset, rad")
+        ax.set_title(f"{row['fold']}: first pass {row['first_pass_mm']} mm, fitted frames {row['fitted_mm']} mm", fontsize=10)
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    axes[-1, 0].set_xticks(x, offsets["names"], rotation=60, ha="right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
