@@ -74,6 +74,7 @@ def _convert(args) -> int:
         f"wrote {args.out}: {report.num_frames} frames at {report.sequence.fps:g} Hz; inverse-kinematics residual "
         f"mean {report.mean_residual_mm:.1f} mm, max {report.max_residual_mm:.1f} mm"
     )
+    print(f"{'warning: ' if report.residual.pattern != 'floor' else ''}{report.residual.describe()}")
     if not report.levelled and report.floor.worth_levelling:
         print(f"note: {report.floor.describe()}; the trackers' floor is level (pass --level-floor to level the motion)")
     return 0

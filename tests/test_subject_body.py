@@ -112,7 +112,10 @@ def test_a_joints_only_file_gets_its_radii_fitted_at_the_joints_poses(other_subj
     small = prepare_test(joints_only, "x.npz", key=jax.random.key(0), say=print)
     assert "too small to fit the capsule radii to (under 45" in capsys.readouterr().out and small.shape_calibration is None
     scene = prepare_test(joints_only, "x.npz", key=jax.random.key(0), say=print, fit_radii=True)
-    assert "fitting the capsule radii to 8 frames' silhouettes at the poses its joints give" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "capsule radii fitted to 8 frames' silhouettes at the poses its joints give, on every pixel" in said
+    steps = int(said.split("on every pixel: ")[1].split(" steps")[0])
+    assert steps == len(scene.shape_calibration.trace) < 300  # it stopped once the objective stopped falling
     plain = prepare_test(joints_only, "x.npz", key=jax.random.key(0), fit_radii=False)
     np.testing.assert_array_equal(np.asarray(scene.body.skeleton.offsets), np.asarray(plain.body.skeleton.offsets))
     assert scene.start_error_mm == pytest.approx(plain.start_error_mm, abs=1e-6)
@@ -123,6 +126,19 @@ def test_a_joints_only_file_gets_its_radii_fitted_at_the_joints_poses(other_subj
     true, fitted, default = (np.asarray(r, np.float64)[shown] for r in (motion.body.radii, scene.body.radii, plain.body.radii))
     print("radii off the subject's (%):", np.round(100 * (fitted / true - 1)), "default:", np.round(100 * (default / true - 1)))
     assert np.mean(np.abs(fitted / true - 1)) < 0.10 < np.mean(np.abs(default / true - 1))
+    # Every step taken (no stopping rule): the same radii within 2 %.
+    from jaxtrack.likelihood import fit_radii
+
+    floor = make_ground_prior(plain.body.skeleton, 0.06)  # prepare_test's CALIBRATION_CLEARANCE
+    _, full_report = fit_radii(plain.likelihood + floor, scene.truth_poses[spread_frames(8, 12)],
+                                        jnp.asarray(np.moveaxis(check_silhouettes(joints_only.silhouettes, joints_only.rig()), 1, 0)),
+                                        stop_tolerance=None)
+    assert len(full_report.trace) == 300
+    np.testing.assert_allclose(report.radii_after, full_report.radii_after, rtol=0.02)
+    # On sampled pixels where the tracker scores them (here asked for at 40x30).
+    sampled = prepare_test(joints_only, "x.npz", key=jax.random.key(0), say=print, fit_radii=True, pixel_samples=256)
+    assert "on 256 sampled pixels per view and frame" in capsys.readouterr().out and sampled.shape_calibration is not None
+    np.testing.assert_allclose(np.asarray(sampled.body.radii), report.radii_after, rtol=0.1)
     # A file that carries its radii keeps them unless asked; asked for, the fit runs on it too.
     assert prepare_test(full, "full.npz", key=jax.random.key(0)).shape_calibration is None
     with pytest.raises(ConfigurationError, match="fitting the capsule radii needs silhouettes"):

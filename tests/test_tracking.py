@@ -357,3 +357,46 @@ def test_prepare_test_refuses_a_frame_count_that_is_not_one_or_more():
     for frames in (-3, 0, True):  # a float is refused by the type hint itself (beartype, in the tests)
         with pytest.raises(ValueError, match="frames must be a whole number of frames, 1 or more"):
             prepare_test(scene, "walk.npz", key=jax.random.key(0), frames=frames)
+
+
+@pytest.mark.slow  # a GPDM fitted and GPAPF compiled twice: 20 s or more on 2 cores with an empty compilation cache
+def test_a_latent_tracker_given_a_pose_off_its_manifold_starts_from_that_pose():
+    """GPAPF carries no pose residual: it starts at the given pose's projection onto its manifold.
+    Given a pose with the arms raised (which no training walk or jog does), the projection is
+    centimetres away, so it is built with the fading start instead and starts at the pose itself;
+    given the walk's own frame 0, nothing changes. Under a flat likelihood frame 0's estimate is
+    the first step from where the dynamics start: at least twice as near the given pose."""
+    from jaxtrack.body import forward_kinematics
+    from jaxtrack.dynamics import PoseResidual
+    from jaxtrack.likelihood import as_likelihood
+    from jaxtrack.tracking import OFF_MANIFOLD_START_MM, build_for_start, fit_manifold, fit_tracker, motion_data, start_off_manifold_mm
+
+    scene, train_poses, validation_poses = small_tracking_inputs(4)
+    recipe = get_tracker("gpapf")
+    model, _, starts = fit_manifold(train_poses, 3, 5, kind="gpdm")
+    fitted = fit_tracker(recipe, jax.random.key(0), motion_data(train_poses, validation_poses, model, starts))
+    flat = as_likelihood(lambda poses, observation: jnp.zeros(poses.shape[0], poses.dtype))
+    skeleton = scene.body.skeleton
+    layout = list(skeleton.pose_layout)
+    raised = np.asarray(scene.initial_pose).copy()
+    for name in ("lshoulder_flex", "rshoulder_flex"):
+        raised[layout.index(name)] = 2.5
+    said = []
+    built = {}
+    for label, start in (("walk", np.asarray(scene.initial_pose)), ("raised", raised)):
+        built[label] = build_for_start(recipe, fitted, flat, Budget(40, 2), start_pose=start, skeleton=skeleton,
+                                       key=jax.random.key(1), say=said.append, name=label, residual_from=validation_poses)
+    (walk, walk_distance), (tracker, distance) = built["walk"], built["raised"]
+    assert walk_distance < OFF_MANIFOLD_START_MM and not isinstance(walk.dynamics, PoseResidual)
+    assert distance > 100.0 and isinstance(tracker.dynamics, PoseResidual)
+    assert len(said) == 1 and said[0].startswith("raised: GPAPF would start") and "fading pose residual" in said[0]
+    assert start_off_manifold_mm(tracker.dynamics, raised, skeleton, jax.random.key(1)) < 1.0
+    raised_joints = forward_kinematics(skeleton, jnp.asarray(raised))
+
+    def frame0_off(filter_):  # mm from the raised pose, after frame 0's step under the flat likelihood
+        _, info = run_filter(filter_, jax.random.key(2), raised, scene.observations)
+        first = forward_kinematics(skeleton, info.estimate[0])
+        return 1000.0 * float(jnp.mean(jnp.linalg.norm(first - raised_joints.astype(first.dtype), axis=-1)))
+
+    plain = build_tracker(recipe, fitted, flat, Budget(40, 2))
+    assert frame0_off(tracker) < 0.5 * frame0_off(plain)

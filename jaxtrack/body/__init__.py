@@ -4,11 +4,14 @@ from ._anthropometry import DEFAULT_STATURE as DEFAULT_STATURE
 from ._anthropometry import check_height as check_height
 from ._anthropometry import limb_lengths_for_height as limb_lengths_for_height
 from ._anthropometry import stature as stature
+from ._geometric_pose import geometric_pose as geometric_pose
 from ._ik import LIMB_SEGMENTS as LIMB_SEGMENTS
 from ._ik import IKResult as IKResult
 from ._ik import fit_limb_lengths as fit_limb_lengths
 from ._ik import inverse_kinematics as inverse_kinematics
 from ._ik import solve_poses as solve_poses
+from ._ik_residual import ResidualReport as ResidualReport
+from ._ik_residual import residual_report as residual_report
 from ._kinematics import forward_kinematics as forward_kinematics
 from ._kinematics import global_rotation_matrices as global_rotation_matrices
 from ._retarget import BANDAI_TO_HUMANEVA as BANDAI_TO_HUMANEVA

@@ -3,10 +3,14 @@
 1. Limb lengths, once per subject: the median over frames of each segment's length (left and
    right averaged), which is the least-squares estimate for a rigid segment.
 2. Poses: for each frame, Gauss-Newton least squares (optimistix) on the joint-position residuals
-   plus a penalty on joint-limit violation, warm-started from the previous frame's solution
-   in one ``lax.scan`` (angles stay continuous: no wrapping, since the yaw is unbounded and
-   every step starts from the last). Poses are finally clamped to the limits. The pelvis
-   pitch, which these 15 joints cannot see, is held at zero by a weak prior.
+   plus a penalty on joint-limit violation, in one ``lax.scan``. Each frame is solved from two
+   starts, the previous frame's solution and the pose geometry reads off the frame's own joints
+   (``geometric_pose``), and the better is kept: warm starts keep the angles continuous (no
+   wrapping: the yaw is unbounded), the geometric start keeps a wrong basin from being handed on
+   (undamped Gauss-Newton from a rest pose diverged on the first frame of mid-stride jogs, and
+   every later frame inherited the wrong limb: 20-120 mm on every frame). Poses are finally
+   clamped to the limits. The pelvis pitch, which these 15 joints cannot see, is held at zero by
+   a weak prior.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import optimistix as optx
 
 from .._custom_types import Array, Float
 from .._tree import cast_floating
+from ._geometric_pose import geometric_pose
 from ._kinematics import forward_kinematics
 from ._skeleton import HUMANEVA_JOINTS, Skeleton, humaneva_skeleton
 
@@ -70,15 +75,6 @@ class IKResult(NamedTuple):
     residual_mm: Float[Array, "frames joints"]
 
 
-def initial_pose(skeleton: Skeleton, target: Float[Array, "joints 3"]) -> Float[Array, " dofs"]:
-    """A starting pose: root at the target pelvis, facing so that the hips line up."""
-    pelvis = target[skeleton.joint_index("pelvis")]
-    left = target[skeleton.joint_index("lhip")] - target[skeleton.joint_index("rhip")]
-    yaw = jnp.arctan2(-left[0], left[1])
-    pose = jnp.zeros(skeleton.num_dofs, target.dtype).at[:3].set(pelvis)
-    return pose.at[skeleton.dof_index("root_yaw")].set(yaw)
-
-
 def _residuals(pose, args):
     skeleton, target, limit_weight, previous, smooth_weight = args
     joints = forward_kinematics(skeleton, pose)
@@ -98,13 +94,24 @@ def _residuals(pose, args):
     return jnp.concatenate([(joints - target).ravel(), limit_weight * violation, smooth, pitch[None]])
 
 
-def _solve(skeleton, target, pose0, limit_weight, smooth_weight, max_steps):
+def _solve(skeleton, target, pose0, previous, limit_weight, smooth_weight, max_steps):
+    """Gauss-Newton from ``pose0``, pulled weakly towards ``previous``: (pose, cost)."""
     # Gauss-Newton with a QR solve: as accurate here as Levenberg-Marquardt (warm starts keep
     # every frame close to its solution) and it compiles in half the time.
     solver = optx.GaussNewton(rtol=1e-9, atol=1e-9, linear_solver=lx.QR())
-    args = (skeleton, target, limit_weight, pose0, smooth_weight)
+    args = (skeleton, target, limit_weight, previous, smooth_weight)
     solution = optx.least_squares(_residuals, solver, pose0, args=args, max_steps=max_steps, throw=False)
-    return solution.value
+    pose = solution.value
+    cost = jnp.sum(_residuals(pose, args) ** 2)
+    return pose, jnp.where(jnp.isfinite(cost), cost, jnp.inf)
+
+
+def _near_yaw(pose, reference, skeleton):
+    """``pose`` with its root yaw moved by whole turns to within half a turn of ``reference``'s
+    (the warm-started yaw is unwrapped; a geometric one is in (-pi, pi])."""
+    k = skeleton.dof_index("root_yaw")
+    turns = jnp.round((pose[k] - reference[k]) / (2 * jnp.pi))
+    return pose.at[k].add(-2 * jnp.pi * turns)
 
 
 @eqx.filter_jit
@@ -116,20 +123,33 @@ def solve_poses(
     smooth_weight=0.01,
     *,
     max_steps: int = 100,
+    starts: Float[Array, "frames dofs"] | None = None,
 ) -> Float[Array, "frames dofs"]:
-    """Per-frame IK warm-started frame to frame in one ``lax.scan`` (poses not yet clamped).
+    """Per-frame IK in one ``lax.scan`` (poses not yet clamped).
 
-    The weights are traced (changing them does not recompile); the number of frames is a
-    shape, so ``inverse_kinematics`` pads sequences to a power of two.
+    Every frame is solved twice, from the previous frame's pose (``pose0`` for the first) and
+    from ``starts`` (default: the pose geometry reads off the frame's own joints,
+    ``geometric_pose``), and the solution of lower cost is kept: a frame that fell into a wrong
+    basin does not hand it on. The weights are traced (changing them does not recompile); the
+    number of frames is a shape, so ``inverse_kinematics`` pads sequences to a power of two and
+    passes ``starts`` computed in NumPy (no geometry to compile).
     """
     limit_weight = jnp.asarray(limit_weight, targets.dtype)
     smooth_weight = jnp.asarray(smooth_weight, targets.dtype)
+    if starts is None:
+        starts = jax.vmap(lambda target: geometric_pose(skeleton, target))(targets)
 
-    def step(previous, target):
-        pose = _solve(skeleton, target, previous, limit_weight, smooth_weight, max_steps)
+    def step(previous, inputs):
+        target, fresh = inputs
+        candidates = jnp.stack([previous, _near_yaw(fresh, previous, skeleton)])
+        poses, costs = jax.vmap(lambda start: _solve(skeleton, target, start, previous, limit_weight, smooth_weight,
+                                                     max_steps))(candidates)
+        best = jnp.argmin(costs)
+        # Neither solve finite (a diverged step): keep the previous pose rather than hand on NaNs.
+        pose = jnp.where(jnp.isfinite(costs[best]) & jnp.all(jnp.isfinite(poses[best])), poses[best], previous)
         return pose, pose
 
-    _, poses = jax.lax.scan(step, pose0, targets)
+    _, poses = jax.lax.scan(step, pose0, (targets, jnp.asarray(starts, targets.dtype)))
     return poses
 
 
@@ -202,22 +222,25 @@ def _fit(joints, skeleton, limit_weight, smooth_weight, max_steps, restarts, key
     T = targets.shape[0]
     bucket = max(16, 1 << (T - 1).bit_length())  # one compile per power-of-two length
 
-    # First frame: the best of a plain start and a few random ones, each solved by warm-starting
-    # on the first frame repeated (the same compiled function as the sequence itself).
+    # First frame: the best of the geometric pose and a few random ones about it, each solved by
+    # warm-starting on the first frame repeated (the same compiled function as the sequence itself).
     first_frame = jnp.repeat(targets[:1], bucket, axis=0)
-    start = initial_pose(skeleton, targets[0])
+    padded = _padded(targets, bucket)
+    geometric = geometric_pose(skeleton, np.asarray(padded))  # NumPy: nothing to compile
+    start = jnp.asarray(geometric[0])
     candidates = [start]
     if restarts > 0:
         noise = 0.4 * jax.random.normal(key, (restarts, skeleton.num_dofs), dtype)
         candidates += list(skeleton.clip_to_limits(start + noise.at[:, :3].set(0.0)))
     best, best_cost = None, np.inf
     for candidate in candidates:
-        pose = solve_poses(skeleton, first_frame, candidate, limit_weight, 0.0, max_steps=max_steps)[-1]
+        pose = solve_poses(skeleton, first_frame, candidate, limit_weight, 0.0, max_steps=max_steps,
+                           starts=np.repeat(geometric[:1], bucket, axis=0))[-1]
         cost = float(jnp.sum(_residuals(pose, (skeleton, targets[0], limit_weight, pose, 0.0)) ** 2))
         if cost < best_cost:
             best, best_cost = pose, cost
 
-    poses = solve_poses(skeleton, _padded(targets, bucket), best, limit_weight, smooth_weight, max_steps=max_steps)[:T]
+    poses = solve_poses(skeleton, padded, best, limit_weight, smooth_weight, max_steps=max_steps, starts=geometric)[:T]
     poses = skeleton.clip_to_limits(poses)
     fitted = forward_kinematics(skeleton, poses)
     residual = 1000.0 * jnp.linalg.norm(fitted - targets, axis=-1)

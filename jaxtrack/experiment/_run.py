@@ -24,8 +24,9 @@ from ..io import fit_floor
 from ..likelihood import get_likelihood, suggest_window
 from ..manifold import ManifoldPrior
 from ..tracking import (
+    OFF_MANIFOLD_START_MM,
     add_ground_prior,
-    build_tracker,
+    build_for_start,
     check_frame_rates,
     check_test_sequence,
     fit_manifold,
@@ -74,11 +75,17 @@ def dynamics_parameters(fitted) -> dict:
 
 
 def _warn_unreachable(resolved, name: str, results: dict) -> None:
-    """Print (and record) a warning where a file's skeleton cannot reach its joints."""
+    """Print (and record) a warning where a file's skeleton cannot reach its joints, and where its
+    inverse-kinematics residual is above the floor (on every frame, or at some frames)."""
+    messages = []
     bad = [] if resolved is None else resolved.unreachable()
     if bad:
-        message = (f"{name}: the skeleton cannot reach the file's joints ({', '.join(bad)}): a score against this ground truth "
-                   "measures the file as much as the tracker")
+        messages.append(f"{name}: the skeleton cannot reach the file's joints ({', '.join(bad)}): a score against this ground "
+                        "truth measures the file as much as the tracker")
+    report = None if resolved is None else resolved.residual_report()
+    if report is not None and report.pattern != "floor":
+        messages.append(f"{name}: {report.describe()}")
+    for message in messages:
         results.setdefault("warnings", []).append(message)
         print(f"warning: {message}")
 
@@ -357,19 +364,24 @@ def _record_dynamics(tracker, method: str, config: ExperimentConfig, results: di
         results["velocity"][method] = {"entries": moving.size, "rest_probability": moving.rest_probability, **spreads}
 
 
-def _build(method: str, fitted: dict, likelihood, config: ExperimentConfig, validation_poses):
-    return build_tracker(get_tracker(method), fitted[method], likelihood, config.tracking_budget,
-                         velocity_from=validation_poses if config.velocity_of(method) else None,
-                         residual_from=validation_poses, residual_scale=config.residual_of(method),
-                         residual_decay=config.residual_decay_of(method), residual_target=config.residual_target_of(method),
-                         gait_rate=config.gait_rate_of(method))
+def _build(method: str, fitted: dict, scene, config: ExperimentConfig, validation_poses, say=None, name: str = ""):
+    """Tracker ``method`` for ``scene`` (``tracking.build_for_start``: the fading start where a latent
+    tracker without a residual would start off its manifold) and its start's distance from its
+    manifold (mm, or None)."""
+    _, run_root = tracker_keys(config.seed, method)
+    return build_for_start(get_tracker(method), fitted[method], scene.likelihood, config.tracking_budget,
+                           start_pose=scene.initial_pose, skeleton=scene.body.skeleton, key=run_root, say=say, name=name,
+                           velocity_from=validation_poses if config.velocity_of(method) else None,
+                           residual_from=validation_poses, residual_scale=config.residual_of(method),
+                           residual_decay=config.residual_decay_of(method), residual_target=config.residual_target_of(method),
+                           gait_rate=config.gait_rate_of(method))
 
 
 def _refined(scene, name: str, method: str, fitted: dict, config: ExperimentConfig, inputs: ExperimentInputs, results: dict, say):
     """``config.refines_body(scene)``: the calibrated body refined on one run of ``method``
     (``tracking.track_and_refine_body``), recorded in ``results["bodies"][name]``."""
     _, run_root = tracker_keys(config.seed, method)
-    tracker = _build(method, fitted, scene.likelihood, config, inputs.validation_poses)
+    tracker, _ = _build(method, fitted, scene, config, inputs.validation_poses)
     first = scene.body_summary()
     scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=config.start == "truth",
                                   ground_clearance=inputs.clearance, name=name)
@@ -395,13 +407,14 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
             results["shape_calibration"][name] = {
                 "capsules": list(report.capsule_names), "radii_before_m": report.radii_before.round(4).tolist(),
                 "radii_after_m": report.radii_after.round(4).tolist(), "cost_before": report.cost_before, "cost_after": report.cost_after,
+                "steps": len(report.trace),
             }
             say(f"{name}: body calibrated on frame 0, silhouette cost {report.cost_before:.3f} -> {report.cost_after:.3f}")
         groups = part_group_indices(scene.body.skeleton)
         per_method = results["sequences"][name] = {}
         for method in methods:
             velocity_from = validation_poses if config.velocity_of(method) else None
-            tracker = _build(method, fitted, scene.likelihood, config, validation_poses)
+            tracker, off_manifold = _build(method, fitted, scene, config, validation_poses, say=say, name=name)
             _record_dynamics(tracker, method, config, results, velocity_from is not None)
             _, run_root = tracker_keys(config.seed, method)
             errors, curves, group_errors, times, ess, degenerate, restarts, estimates = [], [], [], [], [], [], [], None
@@ -430,6 +443,10 @@ def track_methods(inputs: ExperimentInputs, fitted: dict, config: ExperimentConf
                 "compile_s": float(times[0] - np.median(steady)) if len(times) > 1 and not config.batch_runs else None,
                 "frame0_error_mm": float(np.mean([c[0] for c in curves])),
                 "start_error_mm": scene.start_error_mm,
+                # the start's projection onto the tracker's manifold (mm; None: not measured) and whether
+                # the tracker was given the fading start for it (tracking.build_for_start)
+                "start_off_manifold_mm": off_manifold,
+                "fading_start_added": bool(off_manifold is not None and off_manifold > OFF_MANIFOLD_START_MM),
                 "mean_ess": float(np.mean(ess)),
                 "degenerate_fraction": float(np.mean(degenerate)),
                 "restarts_per_run": restarts or None,

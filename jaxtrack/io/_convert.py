@@ -10,7 +10,7 @@ import os
 import jax
 import numpy as np
 
-from ..body import inverse_kinematics, retarget_positions
+from ..body import ResidualReport, inverse_kinematics, residual_report, retarget_positions
 from ..errors import ConfigurationError
 from ._asf_amc import load_asf_amc
 from ._bvh import load_bvh
@@ -33,6 +33,8 @@ class ConversionReport:
     limb_lengths: dict
     floor: FloorFit | None = None
     levelled: bool = False
+    residual: ResidualReport | None = None
+    """The residual per frame and what its pattern points at (``body.residual_report``)."""
 
 
 def load_motion(source: str, *, asf: str | None = None, source_fps: float | None = None):
@@ -152,4 +154,5 @@ def convert_motion(
         limb_lengths=lengths,
         floor=floor,
         levelled=levelled,
+        residual=residual_report(residual),
     )

@@ -31,6 +31,8 @@ from ._blobs import pose_blobs as pose_blobs
 from ._blobs import visual_hull as visual_hull
 from ._blobs import voxel_colours as voxel_colours
 from ._blobs import voxel_grid as voxel_grid
+from ._body_calibration import RADII_LEARNING_RATE as RADII_LEARNING_RATE
+from ._body_calibration import RADII_STOP_TOLERANCE as RADII_STOP_TOLERANCE
 from ._body_calibration import BodyCalibration as BodyCalibration
 from ._body_calibration import body_of as body_of
 from ._body_calibration import calibrate_body as calibrate_body

@@ -403,7 +403,8 @@ def check_silhouettes(silhouettes, rig: CameraRig | None = None, name: str = "si
         raise ValueError(f"{name} must be numeric, got dtype {sil.dtype}")
     if np.issubdtype(sil.dtype, np.floating) and not np.all(np.isfinite(sil)):
         raise ValueError(f"{name} contains NaN or inf")
-    values = np.unique(sil)
+    # the values present: a count per value for bytes (np.unique sorts: 0.8 s on 200 frames of 4 views at 320x240)
+    values = np.flatnonzero(np.bincount(sil.reshape(-1), minlength=2)) if sil.dtype == np.uint8 else np.unique(sil)
     if np.all(np.isin(values, (0, 1))):
         binary = sil.astype(np.float32)
     elif np.all(np.isin(values, (0, 255))):

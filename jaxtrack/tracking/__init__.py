@@ -18,10 +18,15 @@ from ._latentpf import make_latent_pf as make_latent_pf
 from ._limb_measurement import LimbMeasurement as LimbMeasurement
 from ._limb_measurement import measure_limb_lengths as measure_limb_lengths
 from ._mrpf import make_mrpf as make_mrpf
+from ._off_manifold import OFF_MANIFOLD_START_MM as OFF_MANIFOLD_START_MM
+from ._off_manifold import start_off_manifold_mm as start_off_manifold_mm
+from ._pipeline import CALIBRATION_CLEARANCE as CALIBRATION_CLEARANCE
 from ._pipeline import CALIBRATION_FRAMES as CALIBRATION_FRAMES
+from ._pipeline import RADII_FRAMES as RADII_FRAMES
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
 from ._pipeline import TestScene as TestScene
 from ._pipeline import add_ground_prior as add_ground_prior
+from ._pipeline import build_for_start as build_for_start
 from ._pipeline import build_tracker as build_tracker
 from ._pipeline import check_frame_rates as check_frame_rates
 from ._pipeline import check_model_layout as check_model_layout

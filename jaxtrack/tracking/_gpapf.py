@@ -55,9 +55,14 @@ def build(fitted, likelihood, budget):
     return gpapf_filter(latent, likelihood, budget.per_layer, budget.layers - 1, final=final)
 
 
+# No pose residual by default (its final full-pose layer leaves the manifold), but its annealed
+# particles decode their pose from a latent point: where frame 0's pose is far from its projection,
+# it is given the fading start (tracking.build_for_start).
+
 # 001 sec. 5.4 tried latent spaces of 2 and 3 dimensions. 3 it is here, the better of the two on
 # real motion rendered with another body (docs/trackers.md, "Where the manifold trackers start").
 LATENT_DIM = 3
 
 RECIPE = TrackerRecipe("gpapf", "GPAPF", "annealed filter over (global pose, latent point) with a final full-pose layer (001)",
-                       fit, build, needs_manifold=True, manifold="gpdm", annealed=True, min_layers=2, latent_dim=LATENT_DIM)
+                       fit, build, needs_manifold=True, manifold="gpdm", annealed=True, min_layers=2, latent_dim=LATENT_DIM,
+                       residual=0.0)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import time
 import zlib
 from collections.abc import Mapping
 from typing import Any
@@ -67,8 +68,9 @@ from ..likelihood import (
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
 from ._limb_measurement import LimbMeasurement, measure_limb_lengths
+from ._off_manifold import OFF_MANIFOLD_START_MM, start_off_manifold_mm
 from ._refine_body import refine_frame_count, spread_frames, track_and_refine_body
-from ._registry import Budget, MotionData, TrackerRecipe
+from ._registry import FADING_START, Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
 from ._start import START_CHOICES, StartSearch, automatic_start
 from ._subject import (
@@ -85,6 +87,7 @@ TRACKING_DTYPE = jnp.float32
 FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs use tags 0, 1, ...)
 PIXEL_SAMPLE_TAG = 2**31 - 2  # fold_in tag of a test scene's pixel-sample key
 START_TAG = 2**31 - 3  # fold_in tag of the automatic start's search key
+RADII_SAMPLE_TAG = 2**31 - 4  # fold_in tag of the pixels the capsule radii are fitted on
 
 
 
@@ -250,6 +253,33 @@ def build_tracker(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, ref
     if refinement.num_steps != budget.refine_steps:
         raise ValueError(f"the refinement makes {refinement.num_steps} moves, the budget pays for {budget.refine_steps}")
     return tracker.with_refinement(refinement)
+
+
+def build_for_start(recipe: TrackerRecipe, fitted, likelihood, budget: Budget, *, start_pose, skeleton, key,
+                    residual_scale: float = 0.0, residual_decay: float = 1.0, say=None, name: str = "", **options):
+    """``build_tracker``, and where the tracker decodes its pose from a latent point, carries no
+    pose residual and would start more than ``OFF_MANIFOLD_START_MM`` from ``start_pose`` (its
+    projection onto the manifold), the same tracker with the fading start (``FADING_START``), said
+    to ``say``.
+
+    Returns:
+        ``(tracker, distance)``: ``distance`` the start's projection's distance from ``start_pose``
+        (mm, mean over ``skeleton``'s joints), or None where it was not measured (a tracker that
+        takes no residual, or one that carries one).
+    """
+    tracker = build_tracker(recipe, fitted, likelihood, budget, residual_scale=residual_scale, residual_decay=residual_decay,
+                            **options)
+    if residual_scale or recipe.residual is None:
+        return tracker, None
+    distance = start_off_manifold_mm(tracker.dynamics, start_pose, skeleton, key)
+    if distance <= OFF_MANIFOLD_START_MM:
+        return tracker, distance
+    if say is not None:
+        say(f"{name + ': ' if name else ''}{recipe.label} would start {distance:.0f} mm from frame 0's pose (its projection onto "
+            f"the manifold; over {OFF_MANIFOLD_START_MM:.0f} mm): it starts from the pose itself, with the latent point that "
+            "decodes nearest to it, and fades onto its manifold (a fading pose residual)")
+    return build_tracker(recipe, fitted, likelihood, budget, residual_scale=FADING_START[0], residual_decay=FADING_START[1],
+                         **options), distance
 
 
 def fit_velocity(dynamics: AbstractDynamics, validation_poses: list[np.ndarray] | tuple[np.ndarray, ...]) -> VelocityFit:
@@ -595,11 +625,14 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                                          "ground truth)")
         else:
             picks = spread_frames(frames, RADII_FRAMES)
-            say(f"{name}: fitting the capsule radii to {len(picks)} frames' silhouettes at the poses its joints give")
             floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
+            fit_to, fit_observations = likelihood, jax.tree.map(lambda x: jnp.asarray(x[picks]), observations)
+            if pixel_samples is not None:  # on the pixels the tracker scores, not every pixel of the images
+                fit_to, fit_observations = _on_sampled_pixels(likelihood, fit_observations,
+                                                              jax.random.fold_in(key, RADII_SAMPLE_TAG), pixel_samples)
+            started = time.perf_counter()
             try:
-                fitted, report = fit_capsule_radii(likelihood + floor, np.asarray(truth_poses, np.float64)[picks],
-                                                   jax.tree.map(lambda x: jnp.asarray(x[picks]), observations))
+                fitted, report = fit_capsule_radii(fit_to + floor, np.asarray(truth_poses, np.float64)[picks], fit_observations)
             except ConfigurationError as err:
                 if fit_radii:  # asked for: the failure is the answer
                     raise ConfigurationError(f"{name}: fitting the capsule radii: {err}") from None
@@ -607,6 +640,9 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             else:
                 body_model = body_of(fitted)
                 likelihood = with_body(likelihood, body_model)
+                say(f"{name}: capsule radii fitted to {len(picks)} frames' silhouettes at the poses its joints give, on "
+                    + ("every pixel" if pixel_samples is None else f"{pixel_samples} sampled pixels per view and frame")
+                    + f": {len(report.trace)} steps, {time.perf_counter() - started:.1f} s")
     if calibrate:
         likelihood, report = calibrate_shape(likelihood, initial_pose[None], observations[:1])
         body_model = likelihood.body
@@ -822,14 +858,15 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     fit_key, run_root = tracker_keys(seed, method)
     fitted = fit_tracker(recipe, fit_key, motion)
 
-    def build(likelihood):
-        return build_tracker(recipe, fitted, likelihood, spec.tracking_budget,
-                             velocity_from=motion.validation if spec.velocity_of(method) else None,
-                             residual_from=motion.validation, residual_scale=spec.residual_of(method),
-                             residual_decay=spec.residual_decay_of(method), residual_target=spec.residual_target_of(method),
-                             gait_rate=spec.gait_rate_of(method))
+    def build(scene, tell=None):
+        return build_for_start(recipe, fitted, scene.likelihood, spec.tracking_budget, start_pose=scene.initial_pose,
+                               skeleton=scene.body.skeleton, key=run_root, say=tell, name=name,
+                               velocity_from=motion.validation if spec.velocity_of(method) else None,
+                               residual_from=motion.validation, residual_scale=spec.residual_of(method),
+                               residual_decay=spec.residual_decay_of(method), residual_target=spec.residual_target_of(method),
+                               gait_rate=spec.gait_rate_of(method))[0]
 
-    tracker = build(scene.likelihood)
+    tracker = build(scene, say)
     if scene.body_calibration is not None and not spec.refines_body(scene):
         say(f"{name}: no second body pass" + (" (the start was found automatically: docs/video.md; --refine-body for one)"
                                              if spec.refine_body is None else ""))
@@ -839,5 +876,5 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
         scene = track_and_refine_body(scene, tracker, run_root, start_from_truth=spec.start == "truth", ground_clearance=clearance,
                                       name=name)
         say(f"{name}: refined limb lengths (mm): " + ", ".join(f"{n} {1000 * v:.0f}" for n, v in limb_lengths_of(scene.body).items()))
-        tracker = build(scene.likelihood)
+        tracker = build(scene)
     return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)

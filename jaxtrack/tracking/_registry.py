@@ -129,7 +129,8 @@ class TrackerRecipe:
         latent_dim: the latent dimension of the tracker's manifold unless the experiment names
             one for every tracker (None: the kind's own, ``ManifoldKind.latent_dim``).
         residual: for a tracker whose pose is decoded from a latent point, the default scale of
-            an off-manifold pose residual (``dynamics.PoseResidual``; 0: none) unless the
+            an off-manifold pose residual (``dynamics.PoseResidual``; 0: none, except the fading
+            start where frame 0's pose is far from its projection, ``build_for_start``) unless the
             experiment names one for every such tracker; None for a tracker whose state holds
             the pose itself (or whose estimate projects onto the manifold), which takes none.
         residual_decay: that default residual's factor per frame (``PoseResidual.decay``; 1: a

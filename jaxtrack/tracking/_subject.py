@@ -34,11 +34,13 @@ from ..body import (
     HUMANEVA_JOINTS,
     LIMB_SEGMENTS,
     BodyModel,
+    ResidualReport,
     check_joint_names,
     fit_limb_lengths,
     forward_kinematics,
     humaneva_body,
     inverse_kinematics,
+    residual_report,
     with_offsets,
 )
 from ..errors import SequenceFileError
@@ -103,6 +105,10 @@ class SubjectBody:
             return None
         return {name: float(v) for name, v in zip(HUMANEVA_JOINTS, np.mean(self.residual_mm, axis=0))}
 
+    def residual_report(self) -> ResidualReport | None:
+        """The residual read per frame (``body.residual_report``), or None without joints."""
+        return None if self.residual_mm is None else residual_report(self.residual_mm)
+
     def unreachable(self, threshold_mm: float = UNREACHABLE_MM) -> list[str]:
         """The joints the skeleton cannot reach (mean residual over ``threshold_mm``), each with
         its residual and worst frame, for a warning."""
@@ -121,7 +127,8 @@ class SubjectBody:
             per_joint = self.residual_per_joint_mm()
             out["ik_residual_mm"] = {"mean": float(np.mean(self.residual_mm)), "max": float(np.max(self.residual_mm)),
                                      "frame0_mean": float(np.mean(self.residual_mm[0])),
-                                     "per_joint": {k: round(v, 2) for k, v in per_joint.items()}}
+                                     "per_joint": {k: round(v, 2) for k, v in per_joint.items()},
+                                     **self.residual_report().summary()}
             out["unreachable_joints"] = self.unreachable()
         return out
 
