@@ -13,8 +13,13 @@ rendered by a body that is not the tracker's (``data.SolidBody``) into 3 noisy 8
 the default rig; ``experiment.run_experiment`` with the library's defaults; per take and tracker
 the joint error and frame 0's.
 
+``floor``: the same rows' floors before any tracking: the nearest training pose
+(``experiment.nearest_pose_floor_mm``) and the likelihood's own optimum near the truth (L-BFGS
+from the true pose on the tracker's likelihood and body, every 10th frame).
+
     taskset -c 0,1 python experiments/joints_only.py convert --data ../shared/data --json convert.json
     taskset -c 0,1 python experiments/joints_only.py track --data ../shared/data --work /tmp/joints_only --json track.json
+    taskset -c 0,1 python experiments/joints_only.py floor --data ../shared/data --json floor.json
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import glob
 import json
 import os
 import time
+import types
 
 import jax
 import jax.numpy as jnp
@@ -161,33 +167,49 @@ def tracking_rows(data: str) -> dict:
     }
 
 
+def row_takes(args, index: int, spec) -> tuple[list, list, Sequence, Sequence]:
+    """One row's joints-only training and validation sequences, its joints-only test scene (the
+    solid body's 3 noisy 80x60 views) and the test take converted with its pose (to render it,
+    and for the floors)."""
+    subject, train, validation, test, keep = spec
+    train_seqs = []
+    for path, asf in train:
+        joints = joints_of(path, asf, level=True)
+        first, count = keep or (0, 240)  # a short take starts mid-stride
+        train_seqs.append(joints_only_sequence(joints[first:first + count], subject))
+    validation_seqs = [joints_only_sequence(joints_of(path, asf, level=True), subject) for path, asf in validation]
+    # The test take: converted to render it (the solid body on its skeleton), then stripped
+    # to its joints, cameras and silhouettes.
+    path, asf = test
+    converted = convert_motion(path, None, asf=asf, source_fps=120.0, fps=FPS, level_floor=True).sequence.replace(subject=subject)
+    from jaxtrack.experiment import render_test_take
+
+    scene = render_test_take(jax.random.fold_in(jax.random.key(0), index), converted, views=3, size=(80, 60),
+                             frames=args.frames, renderer="solid")
+    return train_seqs, validation_seqs, scene.replace(pose=None, pose_layout=None, skeleton_offsets=None), converted
+
+
+def _names(subject: str, row: str, train_seqs: list, validation_seqs: list) -> dict:
+    return {"train": [f"{subject}-train{i}" for i in range(len(train_seqs))],
+            "validation": [f"{subject}-validation{i}" for i in range(len(validation_seqs))], "test": [row]}
+
+
+def _selected_rows(args):
+    for index, (row, spec) in enumerate(tracking_rows(args.data).items()):
+        if not args.rows or row in args.rows:
+            yield index, row, spec
+
+
 def track_table(args) -> list[dict]:
-    from jaxtrack.experiment import ExperimentConfig, render_test_take, run_experiment
+    from jaxtrack.experiment import ExperimentConfig, run_experiment
 
     os.makedirs(args.work, exist_ok=True)
     out = []
-    for index, (row, (subject, train, validation, test, keep)) in enumerate(tracking_rows(args.data).items()):
-        if args.rows and row not in args.rows:
-            continue
-        train_seqs = []
-        for path, asf in train:
-            joints = joints_of(path, asf, level=True)
-            first, count = keep or (0, 240)  # a short take starts mid-stride
-            train_seqs.append(joints_only_sequence(joints[first:first + count], subject))
-        validation_seqs = [joints_only_sequence(joints_of(path, asf, level=True), subject) for path, asf in validation]
-        # The test take: converted to render it (the solid body on its skeleton), then stripped
-        # to its joints, cameras and silhouettes.
-        path, asf = test
-        converted = convert_motion(path, None, asf=asf, source_fps=120.0, fps=FPS, level_floor=True).sequence.replace(subject=subject)
-        scene = render_test_take(jax.random.fold_in(jax.random.key(0), index), converted, views=3, size=(80, 60),
-                                 frames=args.frames, renderer="solid")
-        test_seq = scene.replace(pose=None, pose_layout=None, skeleton_offsets=None)
+    for index, row, spec in _selected_rows(args):
+        train_seqs, validation_seqs, test_seq, _ = row_takes(args, index, spec)
         config = ExperimentConfig(runs=args.runs, budget=args.budget, seed=0)
         started = time.perf_counter()
-        results = run_experiment(train_seqs, validation_seqs, [test_seq], config,
-                                 names={"train": [f"{subject}-train{i}" for i in range(len(train_seqs))],
-                                        "validation": [f"{subject}-validation{i}" for i in range(len(validation_seqs))],
-                                        "test": [row]},
+        results = run_experiment(train_seqs, validation_seqs, [test_seq], config, names=_names(spec[0], row, train_seqs, validation_seqs),
                                  out_dir=os.path.join(args.work, row.replace(" ", "_").replace(",", "")), progress=False,
                                  animations=False)
         per_method = results["sequences"][row]
@@ -201,9 +223,83 @@ def track_table(args) -> list[dict]:
     return out
 
 
+# --- floors --------------------------------------------------------------------------------
+
+def likelihood_optimum_mm(scene, frames, *, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """How far the likelihood's own best pose lies from the truth: each frame's pose climbed by
+    L-BFGS (``optax.lbfgs``, its zoom line search) on the tracker's log-likelihood (silhouettes and
+    ground prior, the tracker's fitted body) from the truth on that body. Returns per frame and
+    joint its error (mm) against the truth's joints, (frames, J), and per frame the log-likelihood
+    gained. A tracker
+    that follows this likelihood settles about as far from the truth as its optimum."""
+    import optax
+
+    likelihood, skeleton = scene.likelihood, scene.body.skeleton
+    optimiser = optax.lbfgs()
+
+    @jax.jit
+    def climb(pose, observation):
+        def loss(p):
+            return -likelihood.log_likelihood(p[None], observation)[0]
+
+        value_and_grad = optax.value_and_grad_from_state(loss)
+
+        def step(carry, _):
+            p, state = carry
+            value, grad = value_and_grad(p, state=state)
+            updates, state = optimiser.update(grad, state, p, value=value, grad=grad, value_fn=loss)
+            return (optax.apply_updates(p, updates), state), value
+
+        (best, _), _ = jax.lax.scan(step, (pose, optimiser.init(pose)), None, length=steps)
+        return best, loss(pose) - loss(best)
+
+    errors, gains = [], []
+    for frame in frames:
+        observation = jax.tree.map(lambda x, f=frame: x[f], scene.observations)
+        best, gain = climb(jnp.asarray(scene.truth_poses[frame], jnp.float32), observation)
+        joints = np.asarray(forward_kinematics(skeleton, best[None]))[0]
+        errors.append(1000.0 * np.linalg.norm(joints - scene.truth_joints[frame], axis=-1))
+        gains.append(float(gain))
+    return np.asarray(errors), np.asarray(gains)
+
+
+def floor_table(args) -> list[dict]:
+    """Per row, the floors under the tracking table: the nearest training pose
+    (``experiment.nearest_pose_floor_mm``: the training motion as the manifolds see it, converted
+    from the joints-only files) and the likelihood's own optimum near the truth (frame 0 and every
+    ``args.floor_every``-th frame)."""
+    from jaxtrack.experiment import ExperimentConfig, nearest_pose_floor_mm, new_results, prepare_inputs
+
+    out = []
+    for index, row, spec in _selected_rows(args):
+        train_seqs, validation_seqs, test_seq, converted = row_takes(args, index, spec)
+        config = ExperimentConfig(runs=1, budget=args.budget, seed=0)
+        inputs = prepare_inputs(train_seqs, validation_seqs, [test_seq], config, new_results(config),
+                                names=_names(spec[0], row, train_seqs, validation_seqs), say=lambda *a, **k: None)
+        scene = inputs.scenes[0]
+        train_motion = [types.SimpleNamespace(pose=np.asarray(p, np.float64)) for p in inputs.train_poses]  # what the floor reads
+        test_motion = converted.cropped(min(args.frames, converted.num_frames)) if args.frames else converted
+        nearest = nearest_pose_floor_mm(train_motion, test_motion)
+        frames = list(range(0, scene.num_frames, args.floor_every))
+        per_joint, gain = likelihood_optimum_mm(scene, frames, steps=args.floor_steps)
+        optimum = per_joint.mean(axis=1)
+        record = {"row": row, "nearest_training_pose_mm": nearest, "start_error_mm": scene.start_error_mm,
+                  "likelihood_optimum_mm": {"frames": frames, "per_frame": np.round(optimum, 2).tolist(),
+                                            "frame0": float(optimum[0]), "mean": float(optimum.mean()),
+                                            "log_likelihood_gained": np.round(gain, 2).tolist(),
+                                            "per_joint_mean": dict(zip(HUMANEVA_JOINTS, np.round(per_joint.mean(0), 1).tolist()))}}
+        out.append(record)
+        print(f"{row}: nearest training pose {nearest:5.1f} mm; the likelihood's optimum from the truth: frame 0 "
+              f"{optimum[0]:5.1f} mm, mean over {len(frames)} frames {optimum.mean():5.1f} mm, log-likelihood gained "
+              f"{np.median(gain):.1f} (median) (start {scene.start_error_mm:.1f} mm); per joint "
+              + " ".join(f"{n} {e:.0f}" for n, e in zip(HUMANEVA_JOINTS, per_joint.mean(0))),
+              flush=True)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("command", choices=("convert", "track"))
+    parser.add_argument("command", choices=("convert", "track", "floor"))
     parser.add_argument("--data", default="../shared/data", help="the shared motion-capture folder")
     parser.add_argument("--noise-mm", type=float, nargs="+", default=[0.0, 8.0], help="marker-like noise per axis (convert)")
     parser.add_argument("--every", type=int, default=7, help="frames between the starts of the short cuts (convert)")
@@ -212,9 +308,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=2)
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--frames", type=int, default=150, help="test frames tracked")
+    parser.add_argument("--floor-every", type=int, default=10, help="frames between the likelihood's optima (floor)")
+    parser.add_argument("--floor-steps", type=int, default=100, help="L-BFGS steps per frame (floor)")
     parser.add_argument("--json", help="write the rows here")
     args = parser.parse_args()
-    rows = convert_table(args) if args.command == "convert" else track_table(args)
+    rows = {"convert": convert_table, "track": track_table, "floor": floor_table}[args.command](args)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:
             json.dump(rows, handle, indent=1)
