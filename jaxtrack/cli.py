@@ -129,6 +129,18 @@ def _scene(args) -> int:
     return 0
 
 
+def _keypoint_format(sources, given: str | None) -> str:
+    """The keypoint format given, or told from the sources (``io.keypoint_format_of``), said."""
+    from .io import keypoint_format_of
+
+    if given is not None:
+        return given
+    found = keypoint_format_of(sources)
+    told = {"openpose": "folders of per-frame JSON: OpenPose", "coco": "a .json file: COCO", "npz": "an .npz: jaxtrack's keypoint file"}
+    print(f"keypoints: {told[found]} (told from what was given; --keypoint-format to say otherwise)")
+    return found
+
+
 def _keypoints(args) -> int:
     from .io import check_output, load_sequence, read_keypoint_sources, save_sequence
 
@@ -148,8 +160,9 @@ def _keypoints(args) -> int:
         raise ValueError(f"{args.sequence}: has no cameras; give the calibration (--calibration), 2-D keypoints are read per camera")
     views = len(sequence.image_size)
     names = None if sequence.camera_names is None else [str(n) for n in sequence.camera_names]
-    keypoints = read_keypoint_sources(args.sources, args.format, layout=args.layout,
-                                      camera_names=names or (None if args.format == "npz" else [str(c) for c in range(views)]))
+    file_format = _keypoint_format(args.sources, args.format)
+    keypoints = read_keypoint_sources(args.sources, file_format, layout=args.layout, say=print,
+                                      camera_names=names or (None if file_format == "npz" else [str(c) for c in range(views)]))
     if keypoints.shape[0] != views:
         raise ValueError(f"{args.sources[0]}: keypoints of {keypoints.shape[0]} cameras, {args.sequence} has {views}")
     if keypoints.shape[1] != sequence.num_frames:
@@ -454,7 +467,8 @@ def _video_test(args):
     print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
     keypoints = None
     if args.keypoints:
-        keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names)
+        keypoints = read_keypoint_sources(args.keypoints, _keypoint_format(args.keypoints, args.keypoint_format),
+                                          layout=args.keypoint_layout, camera_names=rig.names, say=print)
     observes = get_likelihood(args.likelihood).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
                                keep_images=bool({"edges", "foreground", "images"} & set(observes)), say=print)
@@ -538,7 +552,10 @@ def _track(args) -> int:
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
         done = len(poses)
-        save_sequence(partial, _estimate_sequence(kept.cropped(done), poses, joints))
+        # videos with no keypoints keep nothing per frame once the silhouettes are dropped: the
+        # estimates are then the partial file's only frames
+        so_far = kept.cropped(done) if kept.num_frames else kept
+        save_sequence(partial, _estimate_sequence(so_far, poses, joints))
         print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
         stop_here()
 
@@ -864,11 +881,12 @@ def build_parser() -> argparse.ArgumentParser:
     keypoints.add_argument("sources", nargs="+",
                            help="per camera, in the file's camera order: an OpenPose output folder (one *_keypoints.json per "
                                 "frame) or a COCO keypoint JSON; or one keypoint .npz of every camera (--format npz)")
-    keypoints.add_argument("--format", choices=("openpose", "coco", "npz"), default="openpose",
-                           help="what the sources are (default: %(default)s)")
+    keypoints.add_argument("--format", choices=KEYPOINT_FORMATS,
+                           help="what the sources are (default: told from them: a folder is OpenPose, a .json COCO, an .npz "
+                                "jaxtrack's keypoint file)")
     keypoints.add_argument("--layout", choices=tuple(KEYPOINT_LAYOUTS),
-                           help="the detector's keypoint layout (default: body25 for OpenPose, coco17 for COCO JSON as MMPose "
-                                "and RTMPose write it)")
+                           help="the detector's keypoint layout (default: told from the points per person, and BODY_25 from "
+                                "BODY_25B from where points 0-4 lie)")
     keypoints.add_argument("--calibration", nargs="+", metavar="FILE",
                            help="the cameras, replacing the file's: one JSON or TOML (aniposelib, Pose2Sim, FreeMoCap) file, "
                                 "or one OpenCV FileStorage YAML/XML per camera (docs/keypoints.md)")
@@ -968,10 +986,12 @@ def build_parser() -> argparse.ArgumentParser:
     track.add_argument("--up", help="the calibration world's up axis, e.g. z, y, -y (default: told from the cameras)")
     track.add_argument("--keypoints", nargs="+", metavar="SOURCE",
                        help="with --video: a detector's 2-D keypoints, one .npz of every camera or one OpenPose folder / COCO "
-                            "JSON per camera (--keypoint-format); read by the keypoint likelihoods and the automatic start")
-    track.add_argument("--keypoint-format", choices=KEYPOINT_FORMATS, default="npz", help="(default: %(default)s)")
+                            "JSON per camera; read by the keypoint likelihoods and the automatic start")
+    track.add_argument("--keypoint-format", choices=KEYPOINT_FORMATS,
+                       help="(default: told from the sources: a folder is OpenPose, a .json COCO, an .npz jaxtrack's file)")
     track.add_argument("--keypoint-layout", choices=tuple(KEYPOINT_LAYOUTS),
-                       help="the detector's layout (default: body25 for openpose, coco17 for coco)")
+                       help="the detector's layout (default: told from the points per person, and BODY_25 from BODY_25B "
+                            "from where points 0-4 lie)")
     track.add_argument("--frames", type=_at_least(1), help="with --video: track at most this many frames")
     track.add_argument("--fps", type=float, help="with --video of image folders: their frame rate")
     track.add_argument("--start", choices=START_CHOICES,

@@ -168,3 +168,21 @@ MOTION
     text += f"Frames: {len(frames)}\nFrame Time: {frame_time}\n"
     text += "\n".join(" ".join(f"{v:g}" for v in row) for row in frames) + "\n"
     path.write_text(text)
+
+
+def interrupt_the_second_chunk(monkeypatch) -> list:
+    """Patch the filters' chunk scan so that its second call raises ``KeyboardInterrupt`` (as a
+    Ctrl-C in ``track --chunk-frames``); returns the list its calls are counted in."""
+    import sys
+
+    real_scan = sys.modules["jaxtrack.filters._run"]._scan  # the chunk scan, patched by name
+    calls = []
+
+    def dies_on_the_second_chunk(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real_scan(*a, **k)
+
+    monkeypatch.setattr("jaxtrack.filters._run._scan", dies_on_the_second_chunk)
+    return calls

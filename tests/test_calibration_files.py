@@ -76,6 +76,12 @@ def test_anipose_toml_in_millimetres_and_a_y_up_world(reference, tmp_path):
     path.write_text("\n".join(lines).replace("fisheye = false", "fisheye = true", 1))
     with pytest.raises(CalibrationFileError, match=r"calibration.toml: \[cam_0\]: a fisheye camera"):
         read_calibration(path)
+    # the size as width and height keys, as some tools write it
+    path.write_text("\n".join(lines).replace("size = [ 640.0, 480.0,]", "width = 640\nheight = 480"))
+    np.testing.assert_array_equal(np.asarray(read_calibration(path).image_size), np.asarray(rig.image_size))
+    path.write_text("\n".join(lines).replace("size = [ 640.0, 480.0,]", "width = 640", 1))
+    with pytest.raises(CalibrationFileError, match=r"\[cam_0\] size: missing \(looked for 'size', 'width' and 'height'"):
+        read_calibration(path)
 
 
 def test_opencv_yaml_and_xml_one_file_per_camera(reference, tmp_path):

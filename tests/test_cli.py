@@ -10,7 +10,7 @@ from jaxtrack.cli import main
 from jaxtrack.demo import run_likelihood_demo
 from jaxtrack.io import load_sequence, save_sequence
 
-from helpers import small_scene
+from helpers import interrupt_the_second_chunk, small_scene
 
 
 @pytest.mark.slow  # moved to the slow suite for the default suite's 10 minutes
@@ -180,18 +180,7 @@ def test_track_saves_its_estimates_chunk_by_chunk(tmp_path, capsys, monkeypatch)
     np.testing.assert_array_equal(load_sequence(tmp_path / "chunked.npz").pose, load_sequence(tmp_path / "whole.npz").pose)
     assert not (tmp_path / "chunked.partial.npz").exists()
 
-    import sys
-
-    real_scan = sys.modules["jaxtrack.filters._run"]._scan  # the chunk scan, patched by name as below
-    calls = []
-
-    def dies_on_the_second_chunk(*a, **k):
-        calls.append(1)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return real_scan(*a, **k)
-
-    monkeypatch.setattr("jaxtrack.filters._run._scan", dies_on_the_second_chunk)
+    interrupt_the_second_chunk(monkeypatch)
     assert main([*args, "--chunk-frames", "2", "--out", str(tmp_path / "cut")]) == 130
     assert "interrupted" in capsys.readouterr().err
     partial = load_sequence(tmp_path / "cut.partial.npz")

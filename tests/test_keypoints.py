@@ -14,11 +14,17 @@ from jaxtrack.body import HUMANEVA_JOINTS, forward_kinematics, humaneva_body
 from jaxtrack.camera import default_rig, project_points
 from jaxtrack.errors import ConfigurationError, MotionFileError, TrackingError
 from jaxtrack.io import (
+    HEAD_SPREAD_LIMIT,
     KEYPOINT_LAYOUTS,
+    MIN_LAYOUT_FRAMES,
+    detect_layout,
     follow_person,
     get_keypoint_layout,
+    head_spread,
+    keypoint_format_of,
     load_keypoints,
     read_coco_keypoints,
+    read_keypoint_sources,
     read_openpose_folder,
     save_keypoints,
 )
@@ -185,3 +191,104 @@ def test_bad_keypoint_likelihood_settings_are_refused(scene):
         make_keypoint_likelihood(body, rig, sigma_px=0.0)
     with pytest.raises(ConfigurationError, match="robust"):
         make_keypoint_likelihood(body, rig, robust="huber")
+
+
+# A standing person's detector points in pixels (v down, about 175 px tall), by point name.
+_FIGURE = {
+    "headtop": (0, 0), "nose": (3, 15), "leye": (4, 10), "reye": (-4, 10), "lear": (8, 12), "rear": (-8, 12),
+    "upperneck": (0, 24), "neck": (0, 30), "lshoulder": (20, 35), "rshoulder": (-20, 35), "lelbow": (25, 65),
+    "relbow": (-25, 65), "lwrist": (27, 95), "rwrist": (-27, 95), "midhip": (0, 95), "lhip": (10, 95), "rhip": (-10, 95),
+    "lknee": (11, 135), "rknee": (-11, 135), "lankle": (12, 170), "rankle": (-12, 170), "lheel": (11, 173),
+    "rheel": (-11, 173), "lbigtoe": (18, 176), "rbigtoe": (-18, 176), "lsmalltoe": (21, 175), "rsmalltoe": (-21, 175),
+}
+
+
+def _detections(layout: str, frames: int, seed: int = 0) -> np.ndarray:
+    """(frames, K, 3) one person's points in ``layout``'s order, moved and jittered per frame."""
+    rng = np.random.default_rng(seed)
+    names = get_keypoint_layout(layout).names
+    base = np.asarray([_FIGURE[n] for n in names], np.float64)
+    out = np.empty((frames, len(names), 3))
+    for t in range(frames):
+        out[t, :, :2] = base + [300 + 5 * t, 200] + rng.normal(0, 1.5, base.shape)
+        out[t, :, 2] = rng.uniform(0.5, 1.0, len(names))
+    return out
+
+
+def _write_openpose(folder, detections, extra_empty: bool = False):
+    folder.mkdir()
+    for t, person in enumerate(detections):
+        people = [{"pose_keypoints_2d": person.ravel().tolist()}]
+        if extra_empty:
+            people.insert(0, {"pose_keypoints_2d": []})  # OpenPose writes entries like this
+        (folder / f"c_{t:012d}_keypoints.json").write_text(json.dumps({"version": 1.3, "people": people}))
+
+
+@pytest.mark.parametrize("layout", sorted(KEYPOINT_LAYOUTS))
+def test_the_layout_is_told_from_the_points_and_body25_from_body25b_by_the_data(tmp_path, layout):
+    detections = _detections(layout, 8)
+    _write_openpose(tmp_path / "cam", detections)
+    said = []
+    read = read_openpose_folder(tmp_path / "cam", say=said.append)
+    np.testing.assert_allclose(read, get_keypoint_layout(layout).to_humaneva(detections))
+    assert f"keypoint layout {layout}" in said[0]
+    frames = list(detections[:, None])
+    assert detect_layout(frames, "x")[0] == layout
+    coco = [{"image_id": t, "keypoints": p.ravel().tolist(), "score": 1.0} for t, p in enumerate(detections)]
+    (tmp_path / "coco.json").write_text(json.dumps(coco))
+    np.testing.assert_allclose(read_coco_keypoints(tmp_path / "coco.json"), read)
+
+
+def test_the_head_spread_separates_body25_from_body25b():
+    body25 = head_spread(_detections("body25", 20))
+    body25b = head_spread(_detections("body25b", 20))
+    # an arm's span against a head's, over the height
+    assert np.median(body25) > 0.45 and np.median(body25b) < 0.12
+    assert HEAD_SPREAD_LIMIT > body25b.max() and HEAD_SPREAD_LIMIT < body25.min()
+    unsure = _detections("body25b", 3)
+    unsure[:, 1, 2] = 0.1  # an eye not confident: the detection does not count
+    assert np.all(np.isnan(head_spread(unsure)))
+
+
+def test_twenty_five_points_too_few_to_tell_apart_ask_for_the_layout(tmp_path):
+    detections = _detections("body25b", MIN_LAYOUT_FRAMES - 1)
+    _write_openpose(tmp_path / "cam", detections)
+    with pytest.raises(MotionFileError, match=r"body25 or body25b.*--keypoint-layout body25 or body25b"):
+        read_openpose_folder(tmp_path / "cam")
+    np.testing.assert_allclose(read_openpose_folder(tmp_path / "cam", "body25b"),
+                               get_keypoint_layout("body25b").to_humaneva(detections))
+    with pytest.raises(MotionFileError, match="13 points per person is no known layout"):
+        detect_layout([np.ones((1, 13, 3))], "x")
+
+
+def test_an_empty_openpose_person_entry_is_nobody_detected(tmp_path):
+    detections = _detections("coco18", 4)
+    _write_openpose(tmp_path / "cam", detections, extra_empty=True)
+    (tmp_path / "cam" / "c_000000000004_keypoints.json").write_text(json.dumps({"people": [{"pose_keypoints_2d": []}]}))
+    read = read_openpose_folder(tmp_path / "cam")
+    np.testing.assert_allclose(read[:4], get_keypoint_layout("coco18").to_humaneva(detections))
+    assert read.shape == (5, 15, 3) and np.all(read[4] == 0)  # the last frame: every joint missing
+
+
+def test_the_keypoint_format_is_told_from_what_is_given(tmp_path):
+    (tmp_path / "cam1").mkdir()
+    (tmp_path / "c.json").write_text("[]")
+    save_keypoints(tmp_path / "k.npz", np.zeros((1, 2, 15, 3)), ["C1"])
+    assert keypoint_format_of([tmp_path / "cam1"]) == "openpose"
+    assert keypoint_format_of([tmp_path / "c.json"]) == "coco"
+    assert keypoint_format_of([tmp_path / "k.npz"]) == "npz"
+    with pytest.raises(ValueError, match="different formats"):
+        keypoint_format_of([tmp_path / "cam1", tmp_path / "c.json"])
+    with pytest.raises(ValueError, match="no such keypoint file or folder"):
+        keypoint_format_of([tmp_path / "missing"])
+    (tmp_path / "notes.txt").write_text("")
+    with pytest.raises(ValueError, match="not a keypoint source"):
+        keypoint_format_of([tmp_path / "notes.txt"])
+    folders = []
+    for c in range(2):
+        _write_openpose(tmp_path / f"view{c}", _detections("body25", 6, seed=c))
+        folders.append(tmp_path / f"view{c}")
+    said = []
+    keypoints = read_keypoint_sources(folders, camera_names=["a", "b"], say=said.append)
+    assert keypoints.shape == (2, 6, 15, 3) and said[0].startswith("keypoints: openpose")
+    assert sum("keypoint layout body25 (" in s for s in said) == 2

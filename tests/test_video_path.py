@@ -13,7 +13,7 @@ from jaxtrack.image import fit_background, subtract_background
 from jaxtrack.io import VideoFileError, VideoWriter, save_calibration
 from jaxtrack.tracking import prepare_test, root_guess, sequence_from_video, triangulate
 
-from helpers import small_scene
+from helpers import interrupt_the_second_chunk, small_scene
 
 QUIET = PhotoSettings(sensor_noise=0.0, lighting_change=0.0, shadow_strength=0.0)
 
@@ -206,11 +206,56 @@ def test_videos_read_back_into_a_sequence_and_bad_input_is_named(filmed, tmp_pat
         writer.write(np.zeros((1, 1, 5, 5, 3), np.uint8))
 
 
+def _png_folders(root, pictures, names):
+    """One folder of PNG frames per camera (lossless, unlike H.264)."""
+    import imageio.v3 as iio
+
+    folders = []
+    for name, frames in zip(names, pictures):
+        folder = root / name
+        folder.mkdir(parents=True)
+        for t, frame in enumerate(frames):
+            iio.imwrite(folder / f"{t:04d}.png", frame)
+        folders.append(folder)
+    return folders
+
+
+@pytest.mark.xdist_group("colour_film")
+def test_a_video_an_encoder_cropped_reads_as_the_whole_on_the_pixels_they_share(filmed, tmp_path):
+    """Camera C2's frames 8 px narrower than its calibration (an encoder's crop to a multiple of
+    8): read with a warning naming the file and both sizes, padded blank at the right, and its
+    silhouettes are the uncropped video's on the pixels they share. A difference no encoder
+    makes is refused, saying what to check."""
+    motion, rig, solid, pictures, _ = filmed
+    names = [str(n) for n in rig.names]
+    empty, _ = render_rgb(jax.random.key(1), solid, rig, motion.pose[:4], fps=30.0, with_body=False, chunk=2)
+    whole = _png_folders(tmp_path / "whole", pictures, names)
+    whole_empty = _png_folders(tmp_path / "whole_empty", empty, names)
+    cropped = _png_folders(tmp_path / "cropped", [pictures[0], pictures[1][:, :, :56]], names)  # C2: 64 -> 56 px wide
+    cropped_empty = _png_folders(tmp_path / "cropped_empty", [empty[0], empty[1][:, :, :56]], names)
+    said = []
+    expected = sequence_from_video(whole, rig, fps=30.0, background=whole_empty).sequence.silhouettes
+    read = sequence_from_video(cropped, rig, fps=30.0, background=cropped_empty, say=said.append).sequence.silhouettes
+    warning = [s for s in said if s.startswith("warning:")]
+    assert len(warning) == 2 and "background" in warning[0]
+    assert "C2" in warning[1] and "56x48" in warning[1] and "64x48" in warning[1]
+    assert "8 px cropped at the right, read as blank" in warning[1]
+    assert read.shape == expected.shape == (2, 6, 48, 64)
+    np.testing.assert_array_equal(read[0], expected[0])
+    np.testing.assert_array_equal(read[1, :, :, :56], expected[1, :, :, :56])
+    assert not read[1, :, :, 56:].any()  # the blank pixels are background
+    assert expected[1].any()
+    resized = [pictures[0], pictures[1][:, ::2, ::2]]  # 32x24: a resized video, not an encoder's crop
+    with pytest.raises(VideoFileError, match=r"frames are 32x24, but its calibration is for 64x48 .*calibration's camera order"):
+        sequence_from_video(_png_folders(tmp_path / "resized", resized, names), rig, fps=30.0)
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
-def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys):
+def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys, monkeypatch):
     """``scene --rgb --video`` writes what a user of real cameras has; ``track --video`` reads
     it back with no ground truth (automatic start), writes the estimates and an overlay video,
-    and exits 4 naming the frame where a camera stops seeing the person, keeping the poses."""
+    and exits 4 naming the frame where a camera stops seeing the person, keeping the poses;
+    chunked and interrupted with no keypoints, it keeps the first chunk's estimates."""
     from jaxtrack.cli import main
     from jaxtrack.data import motion_sequence
     from jaxtrack.io import load_sequence, save_sequence
@@ -258,6 +303,19 @@ def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys):
     assert main([*args, "--out", str(tmp_path / "cut")]) == 4
     assert "camera 'C2' sees nobody at frame 5" in capsys.readouterr().err
     assert load_sequence(tmp_path / "cut.npz").num_frames == 5
+    # Chunked, from the videos alone (no keypoints: nothing per frame is kept but the estimates),
+    # interrupted in the second chunk: the first chunk's partial file is a valid sequence.
+    alone = [a for a in args if a != "silhouette+keypoints"]
+    alone[2:5] = videos  # the whole films
+    alone[alone.index("--keypoints"):alone.index("--keypoints") + 2] = []
+    alone[alone.index("--likelihood") + 1:alone.index("--likelihood") + 1] = ["silhouette"]
+    assert main([*alone, "--chunk-frames", "3", "--out", str(tmp_path / "chunked")]) == 0
+    assert "3/8 frames tracked" in capsys.readouterr().out and load_sequence(tmp_path / "chunked.npz").num_frames == 8
+    interrupt_the_second_chunk(monkeypatch)
+    assert main([*alone, "--chunk-frames", "3", "--out", str(tmp_path / "stopped")]) == 130
+    kept = load_sequence(tmp_path / "stopped.partial.npz")
+    assert kept.num_frames == 3 and kept.joints3d.shape == (3, 15, 3) and kept.has_cameras
+    monkeypatch.undo()
     # Bad input before any work: no calibration, a calibration for other cameras' sizes.
     assert main(["track", "--video", *videos, "--model", str(model), "--validation", str(walk), "--out", str(tmp_path / "x")]) == 2
     assert "--video needs the cameras" in capsys.readouterr().err

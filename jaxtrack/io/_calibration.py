@@ -110,6 +110,22 @@ def _required(path, table: dict, keys, what: str):
     raise CalibrationFileError(path, f"{what}: missing (looked for {', '.join(map(repr, keys))})")
 
 
+_SIZE_PAIRS = (("width", "height"), ("image_width", "image_height"))
+
+
+def _size(path, table: dict, keys, what: str):
+    """A camera's image size: one of ``keys`` (width, height), or a width and height pair
+    (``width`` / ``height``, ``image_width`` / ``image_height``)."""
+    for key in keys:
+        if key in table:
+            return table[key]
+    for width, height in _SIZE_PAIRS:
+        if width in table and height in table:
+            return [table[width], table[height]]
+    looked = ", ".join([*map(repr, keys), *(f"{w!r} and {h!r}" for w, h in _SIZE_PAIRS)])
+    raise CalibrationFileError(path, f"{what}: missing (looked for {looked})")
+
+
 def _read_json(path) -> tuple[list[dict], str | None, str | None]:
     try:
         with open(path) as handle:
@@ -127,7 +143,7 @@ def _read_json(path) -> tuple[list[dict], str | None, str | None]:
                                cam.get("distortion", cam.get("dist")),
                                _required(path, cam, ("rotation", "R", "rvec"), f"cameras[{i}] rotation"),
                                _required(path, cam, ("translation", "t", "tvec"), f"cameras[{i}] translation"),
-                               _required(path, cam, ("size", "image_size"), f"cameras[{i}] size")))
+                               _size(path, cam, ("size", "image_size"), f"cameras[{i}] size")))
     return cameras, data.get("units"), data.get("up")
 
 
@@ -151,7 +167,7 @@ def _read_toml(path) -> list[dict]:
                                table.get("distortions", table.get("distortion")),
                                _required(path, table, ("rotation",), f"[{key}] rotation"),
                                _required(path, table, ("translation",), f"[{key}] translation"),
-                               _required(path, table, ("size",), f"[{key}] size")))
+                               _size(path, table, ("size",), f"[{key}] size")))
     if not cameras:
         raise CalibrationFileError(path, "no camera tables (aniposelib, Pose2Sim and FreeMoCap write one [cam_...] table per camera)")
     return cameras

@@ -145,14 +145,18 @@ def follow_person(frames: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-def _points(values, count: int, where: str, line_of: str) -> np.ndarray:
+def _points(values, count: int | None, where: str, line_of: str) -> np.ndarray:
+    """One person's (K, 3) points from a flat list of u, v, confidence; ``count`` None: any
+    whole number of points."""
     array = np.asarray(values, np.float64).reshape(-1) if isinstance(values, list) else None
-    if array is None or array.size != 3 * count:
-        raise MotionFileError(where, None, f"{line_of}: expected {3 * count} numbers (u, v, confidence for {count} points), "
-                                           f"got {array.size if array is not None else type(values).__name__}")
+    expected = None if count is None else 3 * count
+    if array is None or (expected is not None and array.size != expected) or (expected is None and array.size % 3):
+        wanted = f"{expected} numbers (u, v, confidence for {count} points)" if expected else "u, v, confidence per point"
+        got = array.size if array is not None else type(values).__name__
+        raise MotionFileError(where, None, f"{line_of}: expected {wanted}, got {got}")
     if not np.all(np.isfinite(array)):
         raise MotionFileError(where, None, f"{line_of}: NaN or infinite values")
-    return array.reshape(count, 3)
+    return array.reshape(-1, 3)
 
 
 def _read_json(path: str):
@@ -164,12 +168,63 @@ def _read_json(path: str):
         raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
 
 
-def read_openpose_folder(folder: str | os.PathLike, layout: str = "body25") -> np.ndarray:
-    """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
-    (T, 15, 3) HumanEva joints in pixels with confidences, following one person
-    (``follow_person``)."""
-    layout_ = get_keypoint_layout(layout)
-    folder = os.fspath(folder)
+# Layouts by their number of points; BODY_25 and BODY_25B share 25 (``tell_body25_apart``).
+LAYOUTS_BY_POINT_COUNT = {17: ("coco17",), 18: ("coco18",), 25: ("body25", "body25b"), 26: ("halpe26",)}
+HEAD_SPREAD_LIMIT = 0.15  # BODY_25B's points 0-4 (nose, eyes, ears) span under this fraction of the person's height
+MIN_LAYOUT_FRAMES = 5  # confident detections needed to tell BODY_25 from BODY_25B
+
+
+def head_spread(people: np.ndarray, *, min_confidence: float = 0.3) -> np.ndarray:
+    """(P,) how far apart points 0-4 lie (their bounding box's diagonal) over the person's height
+    (the vertical extent of their confident points), for detections (P, K, 3) whose points 0-4
+    and at least 8 points in all are confident; NaN otherwise. BODY_25B puts the nose, eyes and
+    ears there (a head: about 0.05-0.1 of the height), BODY_25 the nose, neck, right shoulder,
+    elbow and wrist (an arm: 0.25 and more)."""
+    people = np.asarray(people, np.float64)
+    confident = people[..., 2] >= min_confidence
+    usable = confident[:, :5].all(axis=1) & (confident.sum(axis=1) >= 8)
+    head = people[:, :5, :2]
+    diagonal = np.linalg.norm(head.max(axis=1) - head.min(axis=1), axis=-1)
+    v = people[..., 1]
+    height = np.where(confident, v, -np.inf).max(axis=1) - np.where(confident, v, np.inf).min(axis=1)
+    height = np.where(usable, height, 0.0)
+    return np.where(usable & (height > 0), diagonal / np.where(height > 0, height, 1.0), np.nan)
+
+
+def detect_layout(frames: list[np.ndarray], where: str) -> tuple[str, str]:
+    """The keypoint layout of a detector's frames (each (P_t, K, 3)), told from K, and for K = 25
+    (BODY_25 or BODY_25B) from the data (``head_spread``, median over the confident detections).
+    Returns ``(layout, why)``; raises ``MotionFileError`` when K names no layout, or 25 points
+    cannot be told apart, naming the candidates and ``--keypoint-layout``."""
+    counts = {f.shape[1] for f in frames if f.shape[0]}
+    if not counts:
+        raise MotionFileError(where, None, "no person is detected in any frame")
+    if len(counts) > 1:
+        raise MotionFileError(where, None, f"detections of different point counts {sorted(counts)} (one detector's output has one)")
+    count = counts.pop()
+    candidates = LAYOUTS_BY_POINT_COUNT.get(count)
+    if candidates is None:
+        known = ", ".join(f"{' or '.join(names)} {k}" for k, names in LAYOUTS_BY_POINT_COUNT.items())
+        raise MotionFileError(where, None, f"{count} points per person is no known layout (points per person: {known})")
+    if len(candidates) == 1:
+        return candidates[0], f"{count} points"
+    spreads = np.concatenate([head_spread(f) for f in frames if f.shape[0]])
+    spreads = spreads[np.isfinite(spreads)]
+    if spreads.size < MIN_LAYOUT_FRAMES:
+        raise MotionFileError(where, None, f"{count} points per person: {' or '.join(candidates)}, and only {spreads.size} "
+                                           f"confident detections to tell them apart (need {MIN_LAYOUT_FRAMES}); give "
+                                           f"--keypoint-layout {' or '.join(candidates)}")
+    spread = float(np.median(spreads))
+    layout = "body25b" if spread < HEAD_SPREAD_LIMIT else "body25"
+    part = "the head's (nose, eyes, ears)" if layout == "body25b" else "an arm's (nose, neck, right shoulder, elbow, wrist)"
+    return layout, (f"{count} points, told from the data: points 0-4 span {100 * spread:.0f} % of the person's height "
+                    f"(median over {spreads.size} detections), {part}")
+
+
+def _openpose_people(folder: str, count: int | None) -> list[np.ndarray]:
+    """Per frame file (sorted by name), every detected person's (K, 3) points stacked (P_t, K, 3).
+    A person entry with an empty ``pose_keypoints_2d`` (OpenPose writes these) is a person not
+    detected: left out. ``count``: the points per person (None: the first person's)."""
     names = sorted(n for n in os.listdir(folder) if n.endswith(".json"))
     if not names:
         raise MotionFileError(folder, None, "no .json keypoint files in the folder")
@@ -180,35 +235,71 @@ def read_openpose_folder(folder: str | os.PathLike, layout: str = "body25") -> n
         people = data.get("people") if isinstance(data, dict) else None
         if not isinstance(people, list):
             raise MotionFileError(path, None, "no 'people' list (an OpenPose keypoint file has one per frame)")
-        frames.append(np.stack([_points(p.get("pose_keypoints_2d") if isinstance(p, dict) else None, layout_.num_points, path,
-                                        f"people[{i}].pose_keypoints_2d ({layout})") for i, p in enumerate(people)])
-                      if people else np.zeros((0, layout_.num_points, 3)))
+        found = []
+        for i, person in enumerate(people):
+            values = person.get("pose_keypoints_2d") if isinstance(person, dict) else None
+            if isinstance(values, list) and not values:
+                continue  # not detected
+            found.append(_points(values, count, path, f"people[{i}].pose_keypoints_2d"))
+            count = found[-1].shape[0]
+        frames.append(np.stack(found) if found else None)
+    return [np.zeros((0, count or 0, 3)) if f is None else f for f in frames]
+
+
+def _chosen_layout(frames: list[np.ndarray], layout: str | None, where: str, say) -> KeypointLayout:
+    """The layout given (its point count checked against the data) or detected (``detect_layout``)."""
+    if layout is None:
+        layout, why = detect_layout(frames, where)
+        if say is not None:
+            say(f"{where}: keypoint layout {layout} ({why})")
+    layout_ = get_keypoint_layout(layout)
+    for t, people in enumerate(frames):
+        if people.shape[0] and people.shape[1] != layout_.num_points:
+            raise MotionFileError(where, None, f"frame {t}: expected {3 * layout_.num_points} numbers (u, v, confidence for "
+                                               f"{layout_.num_points} points of {layout}), got {3 * people.shape[1]}")
+    return layout_
+
+
+def read_openpose_folder(folder: str | os.PathLike, layout: str | None = None, *, say=None) -> np.ndarray:
+    """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
+    (T, 15, 3) HumanEva joints in pixels with confidences, following one person
+    (``follow_person``). ``layout`` None: told from the data (``detect_layout``; ``say`` is
+    given the choice and why). A frame with nobody, or only empty person entries, has every
+    joint missing (confidence 0)."""
+    folder = os.fspath(folder)
+    frames = _openpose_people(folder, None if layout is None else get_keypoint_layout(layout).num_points)
+    layout_ = _chosen_layout(frames, layout, folder, say)
+    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
     return layout_.to_humaneva(follow_person(frames))
 
 
-def read_coco_keypoints(path: str | os.PathLike, layout: str = "coco17", *, images=None) -> np.ndarray:
+def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, images=None, say=None) -> np.ndarray:
     """A COCO keypoint JSON (a results list, or a dict with ``annotations`` and ``images``) of
     one camera -> (T, 15, 3): frames are the image ids in ascending order (or ``images``, ids in
     frame order), one person followed through them; a detection's ``score`` scales its points'
-    visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1)."""
-    layout_ = get_keypoint_layout(layout)
+    visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1). ``layout`` None: told from the data
+    (``detect_layout``)."""
     path = os.fspath(path)
     data = _read_json(path)
     annotations = data.get("annotations") if isinstance(data, dict) else data
     if not isinstance(annotations, list):
         raise MotionFileError(path, None, "expected a list of detections or a dict with 'annotations'")
     by_image: dict = {}
+    count = None if layout is None else get_keypoint_layout(layout).num_points
     for i, item in enumerate(annotations):
         if not isinstance(item, dict) or "image_id" not in item:
             raise MotionFileError(path, None, f"detection {i}: needs 'image_id' and 'keypoints'")
-        points = _points(item.get("keypoints"), layout_.num_points, path, f"detection {i} keypoints ({layout})")
+        points = _points(item.get("keypoints"), count, path, f"detection {i} keypoints")
+        count = points.shape[0]
         visible = points[:, 2]
         if "score" not in item:  # annotations: visibility flags 0, 1, 2
             visible = visible / 2.0
         points[:, 2] = np.clip(visible * float(item.get("score", 1.0)), 0.0, 1.0)
         by_image.setdefault(item["image_id"], []).append(points)
     order = list(images) if images is not None else sorted(by_image)
-    frames = [np.stack(by_image[i]) if i in by_image else np.zeros((0, layout_.num_points, 3)) for i in order]
+    frames = [np.stack(by_image[i]) if i in by_image else np.zeros((0, count or 0, 3)) for i in order]
+    layout_ = _chosen_layout(frames, layout, path, say)
+    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
     return layout_.to_humaneva(follow_person(frames))
 
 
@@ -247,18 +338,47 @@ def check_keypoints(keypoints, num_views: int, *, where: str = "keypoints") -> n
 KEYPOINT_FORMATS = ("npz", "openpose", "coco")
 
 
-def read_keypoint_sources(sources, file_format: str = "npz", *, layout: str | None = None, camera_names=None) -> np.ndarray:
+def keypoint_format_of(sources) -> str:
+    """The keypoint format told from what is given: a folder (of per-frame ``.json``) is
+    OpenPose, a ``.json`` file COCO, an ``.npz`` this library's file. Raises ``ValueError``
+    naming a source that is none of these, or sources of different kinds."""
+    kinds = {}
+    for source in (os.fspath(s) for s in sources):
+        if os.path.isdir(source):
+            kinds[source] = "openpose"
+        elif source.lower().endswith(".json"):
+            kinds[source] = "coco"
+        elif source.lower().endswith(".npz"):
+            kinds[source] = "npz"
+        elif not os.path.exists(source):
+            raise ValueError(f"{source}: no such keypoint file or folder")
+        else:
+            raise ValueError(f"{source}: not a keypoint source (an OpenPose folder of per-frame .json, a COCO .json or a "
+                             "keypoint .npz)")
+    found = set(kinds.values())
+    if len(found) > 1:
+        raise ValueError("keypoint sources of different formats: " + ", ".join(f"{s} ({k})" for s, k in kinds.items()))
+    return found.pop()
+
+
+def read_keypoint_sources(sources, file_format: str | None = None, *, layout: str | None = None, camera_names=None,
+                          say=None) -> np.ndarray:
     """(C, T, 15, 3) HumanEva keypoints from a detector's files: one documented ``.npz`` holding
     every camera (``file_format="npz"``; its camera names must equal ``camera_names`` when
     given), or one source per camera in the cameras' order: an OpenPose folder of per-frame
-    JSON files (``"openpose"``, ``layout`` default ``body25``) or a COCO keypoint JSON
-    (``"coco"``, default ``coco17``).
+    JSON files (``"openpose"``) or a COCO keypoint JSON (``"coco"``). ``file_format`` None: told
+    from the sources (``keypoint_format_of``); ``layout`` None: told from the data
+    (``detect_layout``). ``say`` is given what was told and why.
 
     Raises:
         ValueError: on an unknown format, a count of sources that does not match the cameras,
             or cameras whose sources hold different numbers of frames.
     """
     sources = [os.fspath(s) for s in sources]
+    if file_format is None:
+        file_format = keypoint_format_of(sources)
+        if say is not None:
+            say(f"keypoints: {file_format} (told from {'the folders' if file_format == 'openpose' else 'the file names'})")
     if file_format not in KEYPOINT_FORMATS:
         raise ValueError(f"keypoint format must be one of {KEYPOINT_FORMATS}, got {file_format!r}")
     names = None if camera_names is None else [str(n) for n in camera_names]
@@ -273,7 +393,7 @@ def read_keypoint_sources(sources, file_format: str = "npz", *, layout: str | No
         raise ValueError(f"{len(names)} cameras: give one {file_format} keypoint source per camera, in their order "
                          f"(got {len(sources)})")
     read = read_openpose_folder if file_format == "openpose" else read_coco_keypoints
-    per_view = [read(source, layout or ("body25" if file_format == "openpose" else "coco17")) for source in sources]
+    per_view = [read(source, layout, say=say) for source in sources]
     if len({len(k) for k in per_view}) != 1:
         raise ValueError("the cameras' keypoint sources hold different numbers of frames: "
                          + ", ".join(f"{s} {len(k)}" for s, k in zip(sources, per_view)))

@@ -178,9 +178,15 @@ class MultiViewVideo:
     """One source per camera (video files or image folders), read together by frame index.
 
     Use as a context manager; ``num_frames``, ``sizes`` ((width, height) per camera), ``fps``
-    and ``names`` are known on opening, before any frame is decoded beyond the first."""
+    and ``names`` are known on opening, before any frame is decoded beyond the first.
 
-    def __init__(self, paths, names=None):
+    ``frame_sizes``: per camera, the (width, height) its frames must have (its calibration's). A
+    file a few pixels off (``encoder_size_difference``) is read as an encoder's crop or pad and its frames cropped
+    or padded at the right and bottom edges (``fit_frames``; ``adjusted`` holds a line per such
+    camera); a larger difference raises ``VideoFileError`` (``encoder_size_difference``).
+    ``source_sizes`` are the files' own."""
+
+    def __init__(self, paths, names=None, *, frame_sizes=None):
         paths = [os.fspath(p) for p in paths]
         if not paths:
             raise ValueError("a video needs at least one camera's source")
@@ -207,7 +213,23 @@ class MultiViewVideo:
             raise VideoFileError("the cameras' sources have different numbers of frames: "
                                  + ", ".join(f"{p} {n}" for p, n in zip(paths, counts)) + " (they are synchronised by frame index)")
         self.num_frames = counts[0]
-        self.sizes = tuple(s.size for s in self.sources)
+        self.source_sizes = tuple(tuple(int(v) for v in s.size) for s in self.sources)
+        self.adjusted = []  # one line per camera whose frames are cropped or padded to its frame size
+        if frame_sizes is None:
+            self.sizes = self.source_sizes
+        else:
+            if len(frame_sizes) != len(paths):
+                self.close()
+                raise ValueError(f"{len(frame_sizes)} frame sizes for {len(paths)} sources")
+            self.sizes = tuple((int(w), int(h)) for w, h in frame_sizes)
+            try:
+                for path, name, found, wanted in zip(paths, self.names, self.source_sizes, self.sizes):
+                    line = encoder_size_difference(path, name, found, wanted)
+                    if line:
+                        self.adjusted.append(line)
+            except VideoFileError:
+                self.close()
+                raise
         rates = [s.fps for s in self.sources if s.fps]
         self.fps = rates[0] if rates else None  # frames per second the first video file says (None: image folders)
 
@@ -252,14 +274,54 @@ class MultiViewVideo:
             if shared:
                 block = np.empty((len(self.sources), count) + views[0].shape[1:], np.uint8)
                 views = list(block)
-            _raise_failure(self._each(lambda pair: pair[0].read_into(pair[1]), list(zip(self.sources, views))))
+            # a camera whose file is a few pixels off its frame size is decoded at its own size,
+            # then cropped or padded into the chunk
+            decoded = [view if found == wanted else np.empty((count, found[1], found[0], 3), np.uint8)
+                       for view, found, wanted in zip(views, self.source_sizes, self.sizes)]
+            _raise_failure(self._each(lambda pair: pair[0].read_into(pair[1]), list(zip(self.sources, decoded))))
+            for view, frames_, found, wanted in zip(views, decoded, self.source_sizes, self.sizes):
+                if found != wanted:
+                    view[...] = fit_frames(frames_, *wanted)
             yield first, (block if shared else views)
 
 
-def sample_frames_evenly(paths, count: int = 30) -> np.ndarray:
+ENCODER_SLACK_PX = 15  # encoders crop a side to a multiple of 8 or pad it to one of 16 pixels: 15 at most
+
+
+def encoder_size_difference(path: str, name: str, found, wanted) -> str | None:
+    """None when a video's frames are ``wanted`` (width, height); a warning line when each side
+    is at most ``ENCODER_SLACK_PX`` off and, where it differs, a multiple of 8 (what an encoder's
+    crop or pad leaves, which ``fit_frames`` undoes at the right and bottom edges); else
+    ``VideoFileError`` saying what to check."""
+    (w, h), (W, H) = (int(v) for v in found), (int(v) for v in wanted)
+    if (w, h) == (W, H):
+        return None
+    if all(a == b or (abs(a - b) <= ENCODER_SLACK_PX and a % 8 == 0) for a, b in ((w, W), (h, H))):
+        parts = [f"{abs(d)} px {'padded' if d > 0 else 'cropped'} at the {edge}, {'cut off' if d > 0 else 'read as blank'}"
+                 for d, edge in ((w - W, "right"), (h - H, "bottom")) if d]
+        return (f"{path}: camera {name!r}'s frames are {w}x{h}, its calibration says {W}x{H}: read as the encoder's "
+                f"({'; '.join(parts)})")
+    raise VideoFileError(f"{path}: camera {name!r}'s frames are {w}x{h}, but its calibration is for {W}x{H} images (not "
+                         f"an encoder's crop or pad: a side a multiple of 8, at most {ENCODER_SLACK_PX} px off): check that "
+                         "the videos are given in the calibration's camera order and that the calibration was made at this "
+                         "resolution and orientation (a resized or rotated video needs its cameras scaled or rotated too)")
+
+
+def fit_frames(frames: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(..., h, w, 3) frames cropped or zero-padded at the right and bottom edges to
+    (..., height, width, 3): the pixel grid's origin (the top-left corner, where the intrinsics
+    count from) is kept."""
+    h, w = frames.shape[-3:-1]
+    out = np.zeros(frames.shape[:-3] + (height, width, frames.shape[-1]), frames.dtype)
+    out[..., : min(h, height), : min(w, width), :] = frames[..., : min(h, height), : min(w, width), :]
+    return out
+
+
+def sample_frames_evenly(paths, count: int = 30, *, names=None, frame_sizes=None) -> np.ndarray:
     """(count, C, H, W, 3) uint8 frames spread evenly over the sources (for a background model
-    learned from the video itself, ``image.fit_background``), read in one pass."""
-    with MultiViewVideo(paths) as video:
+    learned from the video itself, ``image.fit_background``), read in one pass; ``names`` and
+    ``frame_sizes`` as ``MultiViewVideo``'s."""
+    with MultiViewVideo(paths, names, frame_sizes=frame_sizes) as video:
         if len(set(video.sizes)) != 1:
             raise VideoFileError("sampling frames needs cameras of one image size")
         wanted = set(np.linspace(0, video.num_frames - 1, min(count, video.num_frames)).round().astype(int).tolist())

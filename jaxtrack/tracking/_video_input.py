@@ -62,11 +62,8 @@ def _silhouettes(model, block):
     return mask, jnp.sum(mask, axis=(2, 3), dtype=jnp.int32)
 
 
-def _check_sizes(rig: CameraRig, video: MultiViewVideo, what: str) -> None:
-    for name, size, (width, height), path in zip(rig.names, video.sizes, rig.image_size, video.paths):
-        if tuple(int(v) for v in size) != (int(width), int(height)):
-            raise VideoFileError(f"{path}: {what} of camera {name!r} is {size[0]}x{size[1]}, but its calibration is for "
-                                 f"{int(width)}x{int(height)} images")
+def _frame_sizes(rig: CameraRig) -> list[tuple[int, int]]:
+    return [(int(w), int(h)) for w, h in np.asarray(rig.image_size)]
 
 
 def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
@@ -76,7 +73,8 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     Args:
         videos: one video file or image folder per camera, in the rig's order.
         rig: the cameras (``io.read_calibration``); each video's frame size must be its
-            camera's image size.
+            camera's image size, or within an encoder's crop or pad of it (``io.MultiViewVideo``'s
+            ``frame_sizes``: cropped or padded at the right and bottom edges, with a warning).
         fps: the frame rate when the sources do not say (image folders); else the videos'.
         background: one video or folder of the empty scene per camera, or None.
         keypoints: (C, T', 15, 3) detections (``io.read_keypoint_sources``), T' >= the frames read.
@@ -98,15 +96,16 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     if background is not None:
         if len(background) != rig.num_views:
             raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
-        with MultiViewVideo(background, names=rig.names) as empty:
-            _check_sizes(rig, empty, "the background video")
+        with MultiViewVideo(background, names=rig.names, frame_sizes=_frame_sizes(rig)) as empty:
+            for line in empty.adjusted:
+                say(f"warning: background {line}")
             start = time.perf_counter()
             pictures = np.concatenate([c for _, c in empty.chunks(chunk)], axis=1).swapaxes(0, 1)  # (t, C, H, W, 3)
             seconds["decode"] += time.perf_counter() - start
         source = f"{pictures.shape[0]} background frames per camera"
     else:
         start = time.perf_counter()
-        pictures = sample_frames_evenly(videos, BACKGROUND_SAMPLES)  # (t, C, H, W, 3)
+        pictures = sample_frames_evenly(videos, BACKGROUND_SAMPLES, names=rig.names, frame_sizes=_frame_sizes(rig))  # (t, C, H, W, 3)
         seconds["decode"] += time.perf_counter() - start
         source = f"the median of {pictures.shape[0]} frames spread over the videos"
     start = time.perf_counter()
@@ -115,10 +114,11 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     say(f"background model: {source}")
     masks, images, stopped = [], [], None
     start = time.perf_counter()
-    video = MultiViewVideo(videos, names=rig.names)
+    video = MultiViewVideo(videos, names=rig.names, frame_sizes=_frame_sizes(rig))
     seconds["open and close"] += time.perf_counter() - start
     with video:
-        _check_sizes(rig, video, "the video")
+        for line in video.adjusted:
+            say(f"warning: {line}")
         total = video.num_frames
         wanted = total if frames is None else min(int(frames), total)
         if keypoints is not None:
