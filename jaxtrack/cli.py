@@ -129,20 +129,8 @@ def _scene(args) -> int:
     return 0
 
 
-def _keypoint_format(sources, given: str | None) -> str:
-    """The keypoint format given, or told from the sources (``io.keypoint_format_of``), said."""
-    from .io import keypoint_format_of
-
-    if given is not None:
-        return given
-    found = keypoint_format_of(sources)
-    told = {"openpose": "folders of per-frame JSON: OpenPose", "coco": "a .json file: COCO", "npz": "an .npz: jaxtrack's keypoint file"}
-    print(f"keypoints: {told[found]} (told from what was given; --keypoint-format to say otherwise)")
-    return found
-
-
 def _keypoints(args) -> int:
-    from .io import check_output, load_sequence, read_keypoint_sources, save_sequence
+    from .io import check_output, keypoint_format_of, load_sequence, read_keypoint_sources, save_sequence
 
     args.out = check_output(args.out, [args.sequence, *args.sources, *(args.calibration or [])], suffix=".npz")
     sequence = load_sequence(args.sequence)
@@ -160,9 +148,9 @@ def _keypoints(args) -> int:
         raise ValueError(f"{args.sequence}: has no cameras; give the calibration (--calibration), 2-D keypoints are read per camera")
     views = len(sequence.image_size)
     names = None if sequence.camera_names is None else [str(n) for n in sequence.camera_names]
-    file_format = _keypoint_format(args.sources, args.format)
-    keypoints = read_keypoint_sources(args.sources, file_format, layout=args.layout, say=print,
-                                      camera_names=names or (None if file_format == "npz" else [str(c) for c in range(views)]))
+    one_file = (args.format or keypoint_format_of(args.sources)) == "npz"  # its camera names are its own
+    keypoints = read_keypoint_sources(args.sources, args.format, layout=args.layout, say=print,
+                                      camera_names=names or (None if one_file else [str(c) for c in range(views)]))
     if keypoints.shape[0] != views:
         raise ValueError(f"{args.sources[0]}: keypoints of {keypoints.shape[0]} cameras, {args.sequence} has {views}")
     if keypoints.shape[1] != sequence.num_frames:
@@ -467,8 +455,8 @@ def _video_test(args):
     print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
     keypoints = None
     if args.keypoints:
-        keypoints = read_keypoint_sources(args.keypoints, _keypoint_format(args.keypoints, args.keypoint_format),
-                                          layout=args.keypoint_layout, camera_names=rig.names, say=print)
+        keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names,
+                                          say=print)
     observes = get_likelihood(args.likelihood).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
                                keep_images=bool({"edges", "foreground", "images"} & set(observes)), say=print)

@@ -290,5 +290,5 @@ def test_the_keypoint_format_is_told_from_what_is_given(tmp_path):
         folders.append(tmp_path / f"view{c}")
     said = []
     keypoints = read_keypoint_sources(folders, camera_names=["a", "b"], say=said.append)
-    assert keypoints.shape == (2, 6, 15, 3) and said[0].startswith("keypoints: openpose")
+    assert keypoints.shape == (2, 6, 15, 3) and said[0].startswith("keypoints: folders of per-frame JSON: OpenPose")
     assert sum("keypoint layout body25 (" in s for s in said) == 2

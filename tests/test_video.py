@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from jaxtrack.io import MultiViewVideo, VideoFileError, sample_frames_evenly
+from jaxtrack.io import MultiViewVideo, VideoFileError, encoder_size_difference, fit_frames, sample_frames_evenly
 
 
 def _frames(count, seed, height=48, width=64):
@@ -76,3 +76,28 @@ def test_bad_video_input_names_the_file_and_the_frame(tmp_path):
     (tmp_path / "junk.mp4").write_bytes(b"not a video at all")
     with pytest.raises(VideoFileError, match=r"junk\.mp4: not a readable video"):
         MultiViewVideo([tmp_path / "junk.mp4"])
+
+
+def test_an_encoder_s_crop_or_pad_is_undone_at_the_right_and_bottom_edges(tmp_path):
+    frames = _frames(3, 5)  # 64x48
+    np.testing.assert_array_equal(fit_frames(frames, 64, 48), frames)
+    padded = fit_frames(frames[:, :40, :56], 64, 48)  # cropped 8 px at the right, 8 at the bottom
+    assert padded.shape == (3, 48, 64, 3) and not padded[:, 40:].any() and not padded[:, :, 56:].any()
+    np.testing.assert_array_equal(padded[:, :40, :56], frames[:, :40, :56])
+    np.testing.assert_array_equal(fit_frames(frames, 56, 40), frames[:, :40, :56])  # padded: cut off
+    assert encoder_size_difference("a.mp4", "C1", (64, 48), (64, 48)) is None
+    line = encoder_size_difference("a.mp4", "C1", (1080, 1920), (1088, 1920))
+    assert line.startswith("a.mp4: camera 'C1'") and "1080x1920" in line and "1088x1920" in line
+    assert "8 px cropped at the right, read as blank" in line
+    assert "8 px padded at the bottom, cut off" in encoder_size_difference("a.mp4", "C1", (1088, 1088), (1088, 1080))
+    for found, wanted in [((1072, 1920), (1088, 1920)), ((1084, 1920), (1088, 1920)), ((1920, 1088), (1088, 1920))]:
+        with pytest.raises(VideoFileError, match="not an encoder's crop or pad"):  # 16 px; not a multiple of 8; rotated
+            encoder_size_difference("a.mp4", "C1", found, wanted)
+    # MultiViewVideo: a folder 8 px narrower than its frame size comes out at that size, said
+    wide, narrow = _folder(tmp_path / "wide", frames), _folder(tmp_path / "narrow", frames[:, :, :56])
+    with MultiViewVideo([wide, narrow], frame_sizes=[(64, 48), (64, 48)]) as video:
+        assert video.source_sizes == ((64, 48), (56, 48)) and video.sizes == ((64, 48), (64, 48))
+        assert len(video.adjusted) == 1 and "narrow" in video.adjusted[0]
+        _, block = next(video.chunks(3))
+    np.testing.assert_array_equal(block[1], fit_frames(frames[:, :, :56], 64, 48))
+    np.testing.assert_array_equal(block[0], frames)

@@ -246,7 +246,7 @@ def test_a_video_an_encoder_cropped_reads_as_the_whole_on_the_pixels_they_share(
     assert not read[1, :, :, 56:].any()  # the blank pixels are background
     assert expected[1].any()
     resized = [pictures[0], pictures[1][:, ::2, ::2]]  # 32x24: a resized video, not an encoder's crop
-    with pytest.raises(VideoFileError, match=r"frames are 32x24, but its calibration is for 64x48 .*calibration's camera order"):
+    with pytest.raises(VideoFileError, match=r"frames of 32x24, but its calibration is for 64x48 .*calibration's camera order"):
         sequence_from_video(_png_folders(tmp_path / "resized", resized, names), rig, fps=30.0)
 
 

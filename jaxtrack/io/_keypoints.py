@@ -149,9 +149,8 @@ def _points(values, count: int | None, where: str, line_of: str) -> np.ndarray:
     """One person's (K, 3) points from a flat list of u, v, confidence; ``count`` None: any
     whole number of points."""
     array = np.asarray(values, np.float64).reshape(-1) if isinstance(values, list) else None
-    expected = None if count is None else 3 * count
-    if array is None or (expected is not None and array.size != expected) or (expected is None and array.size % 3):
-        wanted = f"{expected} numbers (u, v, confidence for {count} points)" if expected else "u, v, confidence per point"
+    if array is None or array.size % 3 or (count is not None and array.size != 3 * count):
+        wanted = "u, v, confidence per point" if count is None else f"{3 * count} numbers (u, v, confidence for {count} points)"
         got = array.size if array is not None else type(values).__name__
         raise MotionFileError(where, None, f"{line_of}: expected {wanted}, got {got}")
     if not np.all(np.isfinite(array)):
@@ -168,7 +167,7 @@ def _read_json(path: str):
         raise MotionFileError(path, err.lineno, f"not JSON: {err.msg}") from None
 
 
-# Layouts by their number of points; BODY_25 and BODY_25B share 25 (``tell_body25_apart``).
+# Layouts by their number of points; BODY_25 and BODY_25B share 25 (``detect_layout``).
 LAYOUTS_BY_POINT_COUNT = {17: ("coco17",), 18: ("coco18",), 25: ("body25", "body25b"), 26: ("halpe26",)}
 HEAD_SPREAD_LIMIT = 0.15  # BODY_25B's points 0-4 (nose, eyes, ears) span under this fraction of the person's height
 MIN_LAYOUT_FRAMES = 5  # confident detections needed to tell BODY_25 from BODY_25B
@@ -187,8 +186,8 @@ def head_spread(people: np.ndarray, *, min_confidence: float = 0.3) -> np.ndarra
     diagonal = np.linalg.norm(head.max(axis=1) - head.min(axis=1), axis=-1)
     v = people[..., 1]
     height = np.where(confident, v, -np.inf).max(axis=1) - np.where(confident, v, np.inf).min(axis=1)
-    height = np.where(usable, height, 0.0)
-    return np.where(usable & (height > 0), diagonal / np.where(height > 0, height, 1.0), np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(usable & (height > 0), diagonal / height, np.nan)
 
 
 def detect_layout(frames: list[np.ndarray], where: str) -> tuple[str, str]:
@@ -246,18 +245,17 @@ def _openpose_people(folder: str, count: int | None) -> list[np.ndarray]:
     return [np.zeros((0, count or 0, 3)) if f is None else f for f in frames]
 
 
-def _chosen_layout(frames: list[np.ndarray], layout: str | None, where: str, say) -> KeypointLayout:
-    """The layout given (its point count checked against the data) or detected (``detect_layout``)."""
+def _followed(frames: list[np.ndarray], layout: str | None, where: str, say) -> np.ndarray:
+    """(T, 15, 3) HumanEva joints of one person followed through a reader's frames (each
+    (P_t, K, 3), K the layout's when it was given), the layout told from them when not given
+    (``detect_layout``, said)."""
     if layout is None:
         layout, why = detect_layout(frames, where)
         if say is not None:
             say(f"{where}: keypoint layout {layout} ({why})")
     layout_ = get_keypoint_layout(layout)
-    for t, people in enumerate(frames):
-        if people.shape[0] and people.shape[1] != layout_.num_points:
-            raise MotionFileError(where, None, f"frame {t}: expected {3 * layout_.num_points} numbers (u, v, confidence for "
-                                               f"{layout_.num_points} points of {layout}), got {3 * people.shape[1]}")
-    return layout_
+    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
+    return layout_.to_humaneva(follow_person(frames))
 
 
 def read_openpose_folder(folder: str | os.PathLike, layout: str | None = None, *, say=None) -> np.ndarray:
@@ -268,9 +266,7 @@ def read_openpose_folder(folder: str | os.PathLike, layout: str | None = None, *
     joint missing (confidence 0)."""
     folder = os.fspath(folder)
     frames = _openpose_people(folder, None if layout is None else get_keypoint_layout(layout).num_points)
-    layout_ = _chosen_layout(frames, layout, folder, say)
-    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
-    return layout_.to_humaneva(follow_person(frames))
+    return _followed(frames, layout, folder, say)
 
 
 def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, images=None, say=None) -> np.ndarray:
@@ -298,9 +294,7 @@ def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, i
         by_image.setdefault(item["image_id"], []).append(points)
     order = list(images) if images is not None else sorted(by_image)
     frames = [np.stack(by_image[i]) if i in by_image else np.zeros((0, count or 0, 3)) for i in order]
-    layout_ = _chosen_layout(frames, layout, path, say)
-    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
-    return layout_.to_humaneva(follow_person(frames))
+    return _followed(frames, layout, path, say)
 
 
 def save_keypoints(path: str | os.PathLike, keypoints, camera_names) -> None:
@@ -336,6 +330,7 @@ def check_keypoints(keypoints, num_views: int, *, where: str = "keypoints") -> n
 
 
 KEYPOINT_FORMATS = ("npz", "openpose", "coco")
+_FORMAT_TOLD = {"openpose": "folders of per-frame JSON: OpenPose", "coco": "a .json file: COCO", "npz": "an .npz: jaxtrack's keypoint file"}
 
 
 def keypoint_format_of(sources) -> str:
@@ -378,7 +373,7 @@ def read_keypoint_sources(sources, file_format: str | None = None, *, layout: st
     if file_format is None:
         file_format = keypoint_format_of(sources)
         if say is not None:
-            say(f"keypoints: {file_format} (told from {'the folders' if file_format == 'openpose' else 'the file names'})")
+            say(f"keypoints: {_FORMAT_TOLD[file_format]} (told from what was given; --keypoint-format to say otherwise)")
     if file_format not in KEYPOINT_FORMATS:
         raise ValueError(f"keypoint format must be one of {KEYPOINT_FORMATS}, got {file_format!r}")
     names = None if camera_names is None else [str(n) for n in camera_names]

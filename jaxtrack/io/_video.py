@@ -299,9 +299,9 @@ def encoder_size_difference(path: str, name: str, found, wanted) -> str | None:
     if all(a == b or (abs(a - b) <= ENCODER_SLACK_PX and a % 8 == 0) for a, b in ((w, W), (h, H))):
         parts = [f"{abs(d)} px {'padded' if d > 0 else 'cropped'} at the {edge}, {'cut off' if d > 0 else 'read as blank'}"
                  for d, edge in ((w - W, "right"), (h - H, "bottom")) if d]
-        return (f"{path}: camera {name!r}'s frames are {w}x{h}, its calibration says {W}x{H}: read as the encoder's "
+        return (f"{path}: camera {name!r}: frames of {w}x{h}, its calibration says {W}x{H}: read as the encoder's "
                 f"({'; '.join(parts)})")
-    raise VideoFileError(f"{path}: camera {name!r}'s frames are {w}x{h}, but its calibration is for {W}x{H} images (not "
+    raise VideoFileError(f"{path}: camera {name!r}: frames of {w}x{h}, but its calibration is for {W}x{H} images (not "
                          f"an encoder's crop or pad: a side a multiple of 8, at most {ENCODER_SLACK_PX} px off): check that "
                          "the videos are given in the calibration's camera order and that the calibration was made at this "
                          "resolution and orientation (a resized or rotated video needs its cameras scaled or rotated too)")
