@@ -1,0 +1,91 @@
+"""A film with what a real rig's recording has (issue #91), from the library's own renderer:
+4 portrait cameras at 1088x1920 (the 272x480 film of ``jaxtrack scene --rgb --video`` upscaled 4
+times: the renderer cannot film at 1088x1920 in 24 GB), a second person walking through C1 and C2
+(a flat-coloured figure composited over the first, so not occluded by depth), C2 and C3 written 8
+px narrower than the calibration says (an encoder's crop), no empty-scene video, and the
+detector's keypoints of the first person only, scaled to 1088x1920 (docs/video.md, "A portrait HD
+rig").
+
+    jaxtrack scene walk.npz --rgb --video film_lo --frames 100 --width 272 --height 480 --views 4
+    python experiments/hd_rig_film.py film --low film_lo --other other.npz --out film_hd
+    python experiments/hd_rig_film.py score --truth film_lo/truth.npz est.npz
+
+``score``: an estimate's joint error against the truth (000 eq. 31), mean, frame 0 and per quarter
+of the frames it holds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+import jax
+import numpy as np
+
+from jaxtrack.data import NO_NOISE, PhotoSettings, SolidBody, render_rgb, scene_from_sequence
+from jaxtrack.io import MultiViewVideo, VideoWriter, load_keypoints, load_sequence, save_calibration, save_keypoints
+
+SCALE = 4
+CROPPED = (1, 2)  # C2 and C3: 8 px narrower
+SECOND_PERSON_VIEWS = (0, 1)  # C1 and C2
+SHIRT = np.array([40, 90, 160], np.uint8)
+
+
+def score(args) -> None:
+    truth, estimate = load_sequence(args.truth), load_sequence(args.estimate)
+    count = estimate.num_frames
+    error = 1000.0 * np.linalg.norm(estimate.joints3d - truth.joints3d[:count], axis=-1).mean(axis=-1)
+    quarters = [float(q.mean()) for q in np.array_split(error, 4)]
+    print(f"{args.estimate}: {count} of {truth.num_frames} frames, {error.mean():.0f} mm, frame 0 {error[0]:.0f} mm, quarters "
+          + " / ".join(f"{q:.0f}" for q in quarters) + f" mm (last over first {quarters[-1] / quarters[0]:.2f})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    film_ = sub.add_parser("film")
+    film_.add_argument("--low", required=True, help="the folder jaxtrack scene --rgb --video wrote")
+    film_.add_argument("--other", required=True, help="the second person's motion (a sequence file)")
+    film_.add_argument("--out", required=True)
+    score_ = sub.add_parser("score")
+    score_.add_argument("--truth", required=True)
+    score_.add_argument("estimate")
+    args = parser.parse_args()
+    (film if args.command == "film" else score)(args)
+
+
+def film(args) -> None:
+    os.makedirs(args.out, exist_ok=True)
+    truth = load_sequence(os.path.join(args.low, "truth.npz"))
+    rig = truth.rig(dtype=np.float64)
+    names = [str(n) for n in rig.names]
+    with MultiViewVideo([os.path.join(args.low, f"{n}.mp4") for n in names]) as video:
+        frames = np.concatenate([block for _, block in video.chunks(50)], axis=1)  # (C, T, h, w, 3)
+    count = frames.shape[1]
+    other = scene_from_sequence(jax.random.key(9), load_sequence(args.other), rig, NO_NOISE, frames=count, progress=False)
+    pose = np.asarray(other.pose).copy()
+    pose[:, :2] += [1.6, 1.2]  # beside the first person's path
+    quiet = PhotoSettings(sensor_noise=0.0, lighting_change=0.0, shadow_strength=0.0)
+    _, masks = render_rgb(jax.random.key(3), SolidBody(other.body().skeleton), rig, pose, settings=quiet, chunk=10)
+    masks = np.asarray(masks)
+    for c in SECOND_PERSON_VIEWS:
+        frames[c][masks[c]] = SHIRT
+    for c, name in enumerate(names):
+        view = np.repeat(np.repeat(frames[c], SCALE, axis=1), SCALE, axis=2)  # (T, H, W, 3)
+        if c in CROPPED:
+            view = view[:, :, :-8]
+        with VideoWriter([os.path.join(args.out, f"{name}.mp4")], truth.fps) as writer:
+            for start in range(0, count, 25):
+                writer.write(view[None, start:start + 25])
+    width, height = (int(v) for v in rig.image_size[0])
+    save_calibration(os.path.join(args.out, "calibration.json"), rig.resized(SCALE * width, SCALE * height))
+    keypoints, camera_names = load_keypoints(os.path.join(args.low, "keypoints.npz"))
+    keypoints = keypoints.copy()  # pixel centres at integer coordinates, as the intrinsics
+    keypoints[..., :2] = np.where(keypoints[..., 2:] > 0, (keypoints[..., :2] + 0.5) * SCALE - 0.5, keypoints[..., :2])
+    save_keypoints(os.path.join(args.out, "keypoints.npz"), keypoints, camera_names)
+    print(f"wrote {count} frames of {len(names)} {SCALE * width}x{SCALE * height} cameras into {args.out} "
+          f"({', '.join(names[c] for c in CROPPED)} 8 px narrower; a second person in {', '.join(names[c] for c in SECOND_PERSON_VIEWS)})")
+
+
+if __name__ == "__main__":
+    main()
