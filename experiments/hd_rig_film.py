@@ -20,6 +20,7 @@ import argparse
 import os
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxtrack.data import NO_NOISE, PhotoSettings, SolidBody, render_rgb, scene_from_sequence
@@ -31,13 +32,40 @@ SECOND_PERSON_VIEWS = (0, 1)  # C1 and C2
 SHIRT = np.array([40, 90, 160], np.uint8)
 
 
+def _quarters(values) -> list[float]:
+    return [float(np.median(q)) for q in np.array_split(values, 4)]
+
+
 def score(args) -> None:
+    """The estimate's joint error against the truth and against a triangulation of the same
+    keypoints, per quarter; and its reprojection error onto the keypoints beside the
+    triangulation's, per camera and quarter (median px over the joints each camera sees)."""
+    from jaxtrack.camera import project_points
+    from jaxtrack.tracking import triangulate
+
     truth, estimate = load_sequence(args.truth), load_sequence(args.estimate)
     count = estimate.num_frames
     error = 1000.0 * np.linalg.norm(estimate.joints3d - truth.joints3d[:count], axis=-1).mean(axis=-1)
     quarters = [float(q.mean()) for q in np.array_split(error, 4)]
     print(f"{args.estimate}: {count} of {truth.num_frames} frames, {error.mean():.0f} mm, frame 0 {error[0]:.0f} mm, quarters "
           + " / ".join(f"{q:.0f}" for q in quarters) + f" mm (last over first {quarters[-1] / quarters[0]:.2f})")
+    if estimate.keypoints2d is None:
+        return
+    rig = estimate.rig(dtype=np.float64)
+    keypoints = np.asarray(estimate.keypoints2d[:, :count], np.float64)  # (C, T, 15, 3), the videos' pixels
+    points, seen = triangulate(rig, keypoints[..., :2], keypoints[..., 2])  # (T, 15, 3)
+    both = seen.all(axis=1)
+    gap = 1000.0 * np.linalg.norm(points - truth.joints3d[:count], axis=-1).mean(axis=-1)
+    apart = 1000.0 * np.linalg.norm(estimate.joints3d - points, axis=-1).mean(axis=-1)
+    print("triangulation against the truth, per quarter: " + " / ".join(f"{q:.0f}" for q in _quarters(gap[both])) + " mm; "
+          "the estimate against the triangulation: " + " / ".join(f"{q:.0f}" for q in _quarters(apart[both])) + " mm")
+    for name, joints in (("estimate", estimate.joints3d), ("triangulation", points)):
+        pixels = np.moveaxis(np.asarray(project_points(rig, jnp.asarray(joints, jnp.float32))[0], np.float64), 2, 0)  # (C, T, 15, 2)
+        off = np.linalg.norm(pixels - keypoints[..., :2], axis=-1)
+        off = np.where(keypoints[..., 2] > 0, off, np.nan)
+        per_camera = [[float(np.nanmedian(q)) for q in np.array_split(off[c], 4)] for c in range(len(rig.names))]
+        print(f"{name} onto the keypoints, median px per quarter: "
+              + "; ".join(f"{n} " + "/".join(f"{v:.0f}" for v in row) for n, row in zip(rig.names, per_camera)))
 
 
 def main() -> None:

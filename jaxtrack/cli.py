@@ -444,7 +444,7 @@ def _video_test(args):
     import numpy as np
 
     from .io import read_calibration, read_keypoint_sources
-    from .likelihood import get_likelihood
+    from .likelihood import DEFAULT_LIKELIHOOD, get_likelihood
     from .tracking import sequence_from_video
 
     if args.test:
@@ -457,15 +457,38 @@ def _video_test(args):
     if args.keypoints:
         keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names,
                                           say=print)
-    observes = get_likelihood(args.likelihood).observes
+    observes = get_likelihood(args.likelihood or DEFAULT_LIKELIHOOD).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
-                               keep_images=bool({"edges", "foreground", "images"} & set(observes)), say=print)
+                               keep_images=bool({"edges", "foreground", "images"} & set(observes)),
+                               resolution=args.resolution or "auto", say=print)
     print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['silhouettes']:.1f} s, "
           f"decoding side by side (its model {read.seconds['background model']:.1f} s, opening and closing the videos "
           f"{read.seconds['open and close']:.1f} s)")
     if read.stopped:
         print(f"warning: the videos' frames from {read.sequence.num_frames} on are not tracked: {read.stopped}", file=sys.stderr)
-    return read.sequence, read.stopped
+    if keypoints is not None:
+        print("silhouettes against the keypoints (the share of each camera's keypoint box they fill, median over the "
+              "background samples): " + ", ".join(f"{n} {c:.2f}" for n, c in zip(rig.names, read.camera_coverage())))
+    return read, read.stopped
+
+
+def _video_likelihood(args, read) -> str | None:
+    """The likelihood ``track --video`` uses where ``--likelihood`` is not given: with keypoints,
+    the silhouettes and the keypoints, or the keypoints alone where a camera's silhouettes miss
+    the person its keypoints place (None: the default)."""
+    from .tracking import MIN_COVERAGE
+
+    if args.likelihood is not None or read.keypoints is None:
+        return None
+    untrusted = read.untrusted_cameras()
+    if untrusted:
+        empty = {n: int(e) for n, e in zip(read.rig.names, read.empty_frames) if e}
+        print(f"warning: the silhouettes of {', '.join(untrusted)} fill under {MIN_COVERAGE:.0%} of the keypoints' box or are "
+              "empty on some frames (the background model holds the person, or the subtraction misses them"
+              + (f"; empty: {', '.join(f'{n} on {e} frames' for n, e in empty.items())}" if empty else "")
+              + "): tracking on the keypoints alone (--likelihood to choose)", file=sys.stderr)
+        return "keypoints"
+    return "silhouette+keypoints"
 
 
 @contextlib.contextmanager
@@ -507,6 +530,7 @@ def _track(args) -> int:
 
     from .evaluation import mean_joint_error_mm
     from .io import check_output, load_sequence, save_sequence
+    from .likelihood import get_likelihood
     from .manifold import load_model
     from .tracking import TrackingSpec, track_sequence
 
@@ -527,7 +551,15 @@ def _track(args) -> int:
     model, header = load_model(args.model)
     stopped = None
     if args.video:
-        sequence, stopped = _video_test(args)
+        read, stopped = _video_test(args)
+        sequence = read.sequence  # at the tracking resolution, which the spec then leaves as it is
+        spec = dataclasses.replace(spec, resolution=None)
+        chosen = _video_likelihood(args, read)
+        if chosen is not None:
+            spec = dataclasses.replace(spec, likelihood=chosen, likelihood_options={})
+        if "silhouettes" not in get_likelihood(spec.likelihood).observes:  # not read, and not checked (some may be empty)
+            sequence = sequence.replace(silhouettes=None)
+        print(f"cues: {spec.likelihood}" + (" (chosen from what was given; --likelihood to choose)" if args.likelihood is None else ""))
         name = os.path.basename(args.video[0])
     elif args.test:
         sequence = load_sequence(args.test)
@@ -536,7 +568,7 @@ def _track(args) -> int:
         raise ValueError("give a test sequence file, or the videos (--video ... --calibration ...)")
     has_truth = sequence.joints3d is not None or sequence.pose is not None
     spec = dataclasses.replace(spec, start=args.start or ("truth" if has_truth else "auto"))
-    kept = sequence.replace(silhouettes=None, images=None) if args.video else sequence
+    kept = read.at_source_resolution() if args.video else sequence  # the estimate file: the calibration's cameras
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
         done = len(poses)
@@ -565,7 +597,7 @@ def _track(args) -> int:
         from .body import humaneva_skeleton
         from .viz import write_overlay_video
 
-        write_overlay_video(args.overlay, args.video, sequence.rig(), joints, humaneva_skeleton().parents, fps=sequence.fps)
+        write_overlay_video(args.overlay, args.video, read.rig, joints, humaneva_skeleton().parents, fps=sequence.fps)
         print(f"wrote {args.overlay}: the estimate over the videos")
     if degenerate > args.max_degenerate:
         print(f"jaxtrack track: error: on {100 * degenerate:.0f} % of the frames every particle's likelihood was -inf or NaN, "
@@ -736,17 +768,19 @@ def load_plugins(argv) -> None:
 def _likelihood_arguments(parser) -> None:
     from .likelihood import DEFAULT_LIKELIHOOD, available_likelihoods, get_likelihood
 
-    parser.add_argument("--likelihood", choices=available_likelihoods(), default=DEFAULT_LIKELIHOOD,
+    parser.add_argument("--likelihood", choices=available_likelihoods(),
                         help="a registered likelihood: " + "; ".join(f"{n}: {get_likelihood(n).description}"
-                                                                     for n in available_likelihoods()) + " (default: %(default)s)")
+                                                                     for n in available_likelihoods())
+                             + f" (default: {DEFAULT_LIKELIHOOD}; track --video with --keypoints: silhouette+keypoints, or "
+                               "keypoints alone where the silhouettes miss the person the keypoints place)")
     parser.add_argument("--likelihood-option", action="append", metavar="KEY=VALUE",
                         help="an option of the likelihood (e.g. edge_width=1.5 for silhouette)")
 
 
 def _likelihood_options(args) -> dict:
-    from .likelihood import get_likelihood
+    from .likelihood import DEFAULT_LIKELIHOOD, get_likelihood
 
-    recipe = get_likelihood(args.likelihood)
+    recipe = get_likelihood(args.likelihood or DEFAULT_LIKELIHOOD)
     return _options(args.likelihood_option, recipe.options, f"likelihood {recipe.name!r}")
 
 
@@ -1066,7 +1100,9 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
                              "and the file gives no radii; --no-fit-radii: the default radii there)")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH",
                         help="track at this image size: the test silhouettes are block-averaged and the cameras rescaled "
-                             "(e.g. 80x60 for 320x240 data)")
+                             "(e.g. 80x60 for 320x240 data); with --video the frames are averaged down to it as they are "
+                             "decoded, a whole factor of their size (default there: the largest at which the person is "
+                             "still 120 px tall)")
     parser.add_argument("--pixel-samples", type=int, metavar="N",
                         help="score the silhouettes on N stratified sample pixels per view and frame (outline band, "
                              "interior, near and far background) instead of every pixel: a cost independent of the image "
@@ -1092,12 +1128,15 @@ def _spec_arguments(parser, whose: str, sequences: str) -> None:
 def _spec_fields(args) -> dict:
     """The ``TrackingSpec`` fields of the flags ``_spec_arguments`` adds (``--height`` checked
     here, so its message names the flag)."""
+    from .likelihood import DEFAULT_LIKELIHOOD
+
     if args.height is not None:
         from .body import check_height
 
         check_height(args.height, "--height")
     return {
-        "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood, "likelihood_options": _likelihood_options(args),
+        "budget": args.budget, "layers": args.layers, "likelihood": args.likelihood or DEFAULT_LIKELIHOOD,
+        "likelihood_options": _likelihood_options(args),
         "likelihood_scale": args.likelihood_scale, "calibrate_shape": args.calibrate_shape, "ground_prior": args.ground_prior,
         "body": _body_choice(args), "height": args.height, "body_prior": args.body_prior, "refine_body": args.refine_body,
         "fit_radii": args.fit_radii,

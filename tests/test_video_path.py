@@ -319,3 +319,98 @@ def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys, monke
     # Bad input before any work: no calibration, a calibration for other cameras' sizes.
     assert main(["track", "--video", *videos, "--model", str(model), "--validation", str(walk), "--out", str(tmp_path / "x")]) == 2
     assert "--video needs the cameras" in capsys.readouterr().err
+
+
+def _still_person_scene(tmp_path, free_frames: int):
+    """Two cameras of 64x48 grey with sensor noise, 12 frames; a dark 'person' (rows 10-39,
+    columns 24-33) stands still in every frame but the first ``free_frames``, where it stands
+    at columns 4-13. Its keypoints (C, T, 15, 3) span its box: no empty-scene video."""
+    rng = np.random.default_rng(0)
+    frames = np.clip(120 + rng.normal(0, 2, (2, 12, 48, 64, 3)), 0, 255).astype(np.uint8)
+    keypoints = np.zeros((2, 12, 15, 3), np.float32)
+    for t in range(12):
+        left = 4 if t < free_frames else 24
+        frames[:, t, 10:40, left:left + 10] = 30
+        keypoints[:, t, :, 0] = np.linspace(left + 1, left + 8, 15)
+        keypoints[:, t, :, 1] = np.linspace(12, 37, 15)
+        keypoints[:, t, :, 2] = 0.9
+    return _png_folders(tmp_path, frames, ["C1", "C2"]), keypoints
+
+
+def test_the_background_leaves_out_the_person_the_keypoints_place_and_a_still_person_is_flagged(tmp_path):
+    """No empty-scene video and a person who stands still: the median of the video holds them.
+    Each pixel's median over the frames whose keypoints leave it free recovers the background
+    where a few frames show it, and the silhouettes fill the keypoints' box; where no frame
+    shows it, the silhouettes miss the person and the cameras are flagged as untrusted."""
+    from jaxtrack.tracking import MIN_COVERAGE, silhouette_coverage
+
+    rig = default_rig(64, 48, num_views=2)
+    folders, keypoints = _still_person_scene(tmp_path / "moved", free_frames=4)
+    read = sequence_from_video(folders, rig, fps=30.0, keypoints=keypoints)
+    assert read.untrusted_cameras() == [] and np.all(read.camera_coverage() > 0.9)
+    person = read.sequence.silhouettes[:, 6:, 10:40, 24:34]
+    assert person.mean() > 0.9 and read.sequence.silhouettes[:, 6:, :, 40:].sum() == 0
+    # the median of every frame holds the still person: its silhouettes miss them
+    import imageio.v3 as iio
+
+    frames = np.stack([np.stack([iio.imread(p) for p in sorted(f.iterdir())]) for f in folders], axis=1)  # (T, C, H, W, 3)
+    plain = fit_background(frames)
+    masks = np.asarray(subtract_background(plain, frames).mask)
+    assert np.nanmedian(silhouette_coverage(masks, keypoints.swapaxes(0, 1), 1)) < MIN_COVERAGE
+    still, keypoints = _still_person_scene(tmp_path / "still", free_frames=0)
+    read = sequence_from_video(still, rig, fps=30.0, keypoints=keypoints)
+    assert read.untrusted_cameras() == ["C1", "C2"] and np.all(read.camera_coverage() < MIN_COVERAGE)
+
+
+@pytest.mark.xdist_group("colour_film")
+def test_frames_averaged_down_as_they_are_decoded(filmed, tmp_path):
+    """``reduce``: image folders averaged in numpy, video files by ffmpeg's area scaler (in RGB),
+    both the mean of each block of the whole frame (a folder exactly, a video within a level),
+    an encoder's crop filled blank before the average; ``sequence_from_video`` at a resolution
+    holds the cameras and keypoints rescaled, and gives them back at the videos' size."""
+    from jaxtrack.io import MultiViewVideo, fit_frames, reduce_frames
+
+    motion, rig, solid, pictures, _ = filmed
+    names = [str(n) for n in rig.names]
+    folders = _png_folders(tmp_path / "png", [pictures[0], pictures[1][:, :, :56]], names)  # C2 cropped by 8 px
+    videos = [tmp_path / f"{n}.mp4" for n in names]
+    with VideoWriter(videos, 30.0) as writer:
+        writer.write(pictures)
+    empty, _ = render_rgb(jax.random.key(1), solid, rig, motion.pose[:4], fps=30.0, with_body=False, chunk=2)
+    backgrounds = _png_folders(tmp_path / "empty", empty, names)
+    whole = np.stack([pictures[0], fit_frames(pictures[1][:, :, :56], 64, 48)])
+    with MultiViewVideo(folders, frame_sizes=[(64, 48)] * 2, reduce=2) as video:
+        assert video.sizes == ((32, 24),) * 2 and video.frame_sizes == ((64, 48),) * 2
+        np.testing.assert_array_equal(np.concatenate([b for _, b in video.chunks(4)], axis=1), reduce_frames(whole, 2))
+    with MultiViewVideo(videos, reduce=4) as small, MultiViewVideo(videos) as full:
+        averaged = np.concatenate([b for _, b in small.chunks(4)], axis=1)
+        expected = reduce_frames(np.concatenate([b for _, b in full.chunks(4)], axis=1), 4)
+    assert averaged.shape == (2, 6, 12, 16, 3) and np.abs(averaged.astype(int) - expected).max() <= 1
+    with pytest.raises(ValueError, match="cannot be reduced 3 times"):
+        MultiViewVideo(videos, reduce=3)
+    keypoints = np.zeros((2, 6, 15, 3), np.float32)
+    keypoints[..., 0], keypoints[..., 1], keypoints[..., 2] = 31.5, 23.5, 1.0
+    read = sequence_from_video(folders, rig, fps=30.0, keypoints=keypoints, resolution=(32, 24), background=backgrounds)
+    assert read.reduce == 2 and read.sequence.silhouettes.shape == (2, 6, 24, 32)
+    np.testing.assert_allclose(read.sequence.camera_K, np.asarray(rig.resized(32, 24).K), rtol=1e-6)
+    np.testing.assert_allclose(read.sequence.keypoints2d[..., :2], np.broadcast_to([15.5, 11.5], (2, 6, 15, 2)))  # (x + 0.5) / 2 - 0.5
+    source = read.at_source_resolution()
+    np.testing.assert_allclose(source.camera_K, np.asarray(rig.K), rtol=1e-6)
+    np.testing.assert_array_equal(source.keypoints2d, keypoints)
+    assert source.silhouettes is None and tuple(source.image_size[0]) == (64, 48)
+    with pytest.raises(ValueError, match=r"whole number of times as large on both sides \(e\.g\. 32x24"):
+        sequence_from_video(folders, rig, fps=30.0, resolution=(48, 24))
+
+
+def test_the_tracking_resolution_is_chosen_from_the_person_size():
+    """The preview: the smallest whole reduction with the longer side at 640 px or under; the
+    tracking resolution: the largest multiple of it that keeps the person 120 px tall."""
+    from jaxtrack.tracking import choose_reduction, common_reductions, preview_reduction
+
+    portrait = [(1088, 1920)] * 4
+    assert common_reductions(portrait) == [1, 2, 4, 8, 16, 32, 64]
+    assert preview_reduction(portrait) == 4 and preview_reduction([(320, 240)]) == 1
+    assert choose_reduction(portrait, 4, 373.0) == 4  # 93 px at the preview: kept
+    assert choose_reduction(portrait, 4, 1500.0) == 8  # 187 px at 8, 94 at 16
+    assert choose_reduction(portrait, 4, 4000.0) == 32
+    assert choose_reduction([(1920, 1080)], 2, 900.0) == 6  # 150 px; 8 would leave 112

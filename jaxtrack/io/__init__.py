@@ -62,4 +62,6 @@ from ._video import VideoFileError as VideoFileError
 from ._video import VideoWriter as VideoWriter
 from ._video import encoder_size_difference as encoder_size_difference
 from ._video import fit_frames as fit_frames
+from ._video import reduce_frames as reduce_frames
 from ._video import sample_frames_evenly as sample_frames_evenly
+from ._video import sampled_frame_indices as sampled_frame_indices

@@ -6,7 +6,11 @@ A video file is decoded by imageio's ffmpeg plugin (the ``imageio-ffmpeg`` packa
 name order). Grey pictures become RGB, an alpha channel is dropped. ``MultiViewVideo`` checks
 before any decoding that every camera's source exists and has the same number of frames, and
 reads each camera's frame size; ``chunks`` yields ``(first_frame, frames (C, t, H, W, 3) uint8)``
-when the cameras share one size, else one list entry per camera. A frame that cannot be decoded
+when the cameras share one size, else one list entry per camera. With ``reduce`` = f the frames
+come out f times smaller on each side, each pixel the mean of an f x f block (area averaging; a
+video file is scaled by its ffmpeg process, so only the small frames cross the pipe): a tracker
+that works at a tenth of an HD camera's resolution never holds its full frames beyond one
+chunk. A frame that cannot be decoded
 raises ``VideoFileError`` naming the camera, the file and the frame, after the chunks before it
 were handed out (a caller that saves as it goes keeps them).
 """
@@ -14,6 +18,7 @@ were handed out (a caller that saves as it goes keeps them).
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import re
 import warnings
@@ -55,7 +60,12 @@ class _Folder:
         self.fps = None  # pictures do not say
         first = self._read(0)
         self.size = (first.shape[1], first.shape[0])
+        self.out_size = self.size  # what read_into writes: the pictures as they are (MultiViewVideo fits them)
         self.position = 0
+
+    def shape_output(self, wanted, reduce: int) -> bool:
+        """Pictures are fitted and reduced by the caller: False."""
+        return False
 
     def _read(self, index: int) -> np.ndarray:
         import imageio.v3 as iio
@@ -111,6 +121,17 @@ def _count_frames(path: str) -> int:
     return int(counts[-1])
 
 
+class _QuietResize(logging.Filter):
+    """imageio-ffmpeg warns that a scaled reader's frames differ from the source's size: they are
+    meant to."""
+
+    def filter(self, record):
+        return "is different from the source frame size" not in record.getMessage()
+
+
+logging.getLogger("imageio_ffmpeg").addFilter(_QuietResize())
+
+
 class _VideoFile:
     """A video file decoded to RGB frames by one ffmpeg process (``imageio_ffmpeg.read_frames``,
     the reader under imageio's ffmpeg plugin, used directly: the plugin's reader starts ffmpeg
@@ -120,15 +141,11 @@ class _VideoFile:
         self.path = path
         self.frames = None
         try:
-            import imageio_ffmpeg
-
             # counted first: a file ffmpeg cannot read fails here, before a reader is started
             self.num_frames = _count_frames(path)
             if self.num_frames < 1:
                 raise VideoFileError(f"{path}: the video has no frames")
-            self.frames = imageio_ffmpeg.read_frames(path, pix_fmt="rgb24")
-            meta = next(self.frames)
-            width, height = meta["size"]
+            width, height = self._start([])
         except ImportError as err:
             raise VideoFileError(f"{path}: reading video files needs imageio's ffmpeg plugin: pip install 'jaxtrack[video]' "
                                  f"({err})") from None
@@ -139,12 +156,44 @@ class _VideoFile:
             said = [line.strip() for line in str(err).splitlines() if line.strip()]
             said = " / ".join(said[:1] + said[-2:] if len(said) > 3 else said)  # not ffmpeg's banner and build options
             raise VideoFileError(f"{path}: not a readable video ({type(err).__name__}: {said})") from None
-        self.size = (int(width), int(height))
-        self.fps = float(meta.get("fps") or 0.0) or None
+        self.size = self.out_size = (int(width), int(height))
         self.position = 0
 
+    def _start(self, output_params) -> tuple[int, int]:
+        """Start the ffmpeg reader; the (width, height) of the frames it writes."""
+        import imageio_ffmpeg
+
+        self.frames = imageio_ffmpeg.read_frames(self.path, pix_fmt="rgb24", output_params=output_params)
+        meta = next(self.frames)
+        self.fps = float(meta.get("fps") or 0.0) or None
+        return meta["size"]
+
+    def shape_output(self, wanted, reduce: int) -> bool:
+        """Let ffmpeg crop or pad the frames to ``wanted`` (width, height) at the right and bottom
+        edges (black, as ``fit_frames``'s zeros) and average them over ``reduce`` x ``reduce``
+        blocks (its area scaler): True, the frames then come out at ``out_size``. Before any
+        frame is read."""
+        (w, h), (W, H) = self.size, (int(v) for v in wanted)
+        filters = [f"pad={max(w, W)}:{max(h, H)}:0:0:black", f"crop={W}:{H}:0:0"] if (w, h) != (W, H) else []
+        if reduce > 1:
+            filters.append(f"scale={W // reduce}:{H // reduce}:flags=area")
+        if not filters:
+            return True
+        self.close()
+        try:  # in planar RGB: averaged as RGB pixels are (yuv420's halved chroma bled into the blank edge)
+            found = tuple(int(v) for v in self._start(["-vf", ",".join(["format=gbrp", *filters])]))
+        except Exception as err:  # noqa: BLE001 - as on opening
+            self.close()
+            raise VideoFileError(f"{self.path}: ffmpeg could not scale the video ({type(err).__name__}: {err})") from None
+        self.out_size = (W // reduce, H // reduce)
+        if found != self.out_size:
+            self.close()
+            raise VideoFileError(f"{self.path}: ffmpeg scaled the frames to {found[0]}x{found[1]}, not "
+                                 f"{self.out_size[0]}x{self.out_size[1]}")
+        return True
+
     def read_into(self, out: np.ndarray) -> None:
-        width, height = self.size
+        width, height = self.out_size
         for i in range(len(out)):
             try:
                 data = next(self.frames)
@@ -184,10 +233,15 @@ class MultiViewVideo:
     file a few pixels off (``encoder_size_difference``) is read as an encoder's crop or pad and its frames cropped
     or padded at the right and bottom edges (``fit_frames``; ``adjusted`` holds a line per such
     camera); a larger difference raises ``VideoFileError`` (``encoder_size_difference``).
-    ``source_sizes`` are the files' own."""
+    ``source_sizes`` are the files' own. ``reduce``: the frames averaged over blocks of that many
+    pixels a side after the fit (``reduce_frames``; it must divide every frame size); ``sizes``
+    are the sizes the chunks come out at, ``frame_sizes`` the sizes before the reduction."""
 
-    def __init__(self, paths, names=None, *, frame_sizes=None):
+    def __init__(self, paths, names=None, *, frame_sizes=None, reduce: int = 1):
         paths = [os.fspath(p) for p in paths]
+        if isinstance(reduce, bool) or not isinstance(reduce, (int, np.integer)) or reduce < 1:
+            raise ValueError(f"reduce must be a whole number of pixels, 1 or more, got {reduce!r}")
+        self.reduce = int(reduce)
         if not paths:
             raise ValueError("a video needs at least one camera's source")
         self.paths = paths
@@ -216,20 +270,32 @@ class MultiViewVideo:
         self.source_sizes = tuple(tuple(int(v) for v in s.size) for s in self.sources)
         self.adjusted = []  # one line per camera whose frames are cropped or padded to its frame size
         if frame_sizes is None:
-            self.sizes = self.source_sizes
+            self.frame_sizes = self.source_sizes
         else:
             if len(frame_sizes) != len(paths):
                 self.close()
                 raise ValueError(f"{len(frame_sizes)} frame sizes for {len(paths)} sources")
-            self.sizes = tuple((int(w), int(h)) for w, h in frame_sizes)
+            self.frame_sizes = tuple((int(w), int(h)) for w, h in frame_sizes)
             try:
-                for path, name, found, wanted in zip(paths, self.names, self.source_sizes, self.sizes):
+                for path, name, found, wanted in zip(paths, self.names, self.source_sizes, self.frame_sizes):
                     line = encoder_size_difference(path, name, found, wanted)
                     if line:
                         self.adjusted.append(line)
             except VideoFileError:
                 self.close()
                 raise
+        for path, (w, h) in zip(paths, self.frame_sizes):
+            if w % self.reduce or h % self.reduce:
+                self.close()
+                raise ValueError(f"{path}: {w}x{h} frames cannot be reduced {self.reduce} times (it must divide both sides)")
+        self.sizes = tuple((w // self.reduce, h // self.reduce) for w, h in self.frame_sizes)
+        try:  # video files fitted and reduced by their ffmpeg; image folders here, after decoding
+            self._shaped = self._each(lambda pair: pair[0].shape_output(pair[1], self.reduce),
+                                      list(zip(self.sources, self.frame_sizes)))
+            _raise_failure(self._shaped)
+        except BaseException:
+            self.close()
+            raise
         rates = [s.fps for s in self.sources if s.fps]
         self.fps = rates[0] if rates else None  # frames per second the first video file says (None: image folders)
 
@@ -274,15 +340,30 @@ class MultiViewVideo:
             if shared:
                 block = np.empty((len(self.sources), count) + views[0].shape[1:], np.uint8)
                 views = list(block)
-            # a camera whose file is a few pixels off its frame size is decoded at its own size,
-            # then cropped or padded into the chunk
-            decoded = [view if found == wanted else np.empty((count, found[1], found[0], 3), np.uint8)
-                       for view, found, wanted in zip(views, self.source_sizes, self.sizes)]
+            # a video file comes out of its ffmpeg at the chunk's size; image folders (and a
+            # camera whose pictures are a few pixels off) are decoded at their own size, then
+            # cropped or padded and reduced into the chunk
+            decoded = [view if shaped or source.size == size else np.empty((count, source.size[1], source.size[0], 3), np.uint8)
+                       for view, source, shaped, size in zip(views, self.sources, self._shaped, self.sizes)]
             _raise_failure(self._each(lambda pair: pair[0].read_into(pair[1]), list(zip(self.sources, decoded))))
-            for view, frames_, found, wanted in zip(views, decoded, self.source_sizes, self.sizes):
-                if found != wanted:
-                    view[...] = fit_frames(frames_, *wanted)
+            for view, frames_, wanted in zip(views, decoded, self.frame_sizes):
+                if frames_ is not view:
+                    view[...] = reduce_frames(fit_frames(frames_, *wanted), self.reduce)
             yield first, (block if shared else views)
+
+
+    def sample(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(indices (t,), frames (t, C, H, W, 3) uint8)``: ``count`` frames spread evenly over the
+        sources (``sampled_frame_indices``), read in one pass from the start; the cameras must
+        share one size."""
+        if len(set(self.sizes)) != 1:
+            raise VideoFileError("sampling frames needs cameras of one image size")
+        indices = sampled_frame_indices(self.num_frames, count)
+        wanted = set(indices.tolist())
+        picked = []
+        for first, frames in self.chunks(32):
+            picked += [frames[:, i] for i in range(frames.shape[1]) if first + i in wanted]
+        return indices, np.stack(picked)
 
 
 ENCODER_SLACK_PX = 15  # encoders crop a side to a multiple of 8 or pad it to one of 16 pixels: 15 at most
@@ -317,18 +398,32 @@ def fit_frames(frames: np.ndarray, width: int, height: int) -> np.ndarray:
     return out
 
 
-def sample_frames_evenly(paths, count: int = 30, *, names=None, frame_sizes=None) -> np.ndarray:
+def reduce_frames(frames: np.ndarray, factor: int) -> np.ndarray:
+    """(..., H, W, 3) uint8 frames -> (..., H / factor, W / factor, 3): each pixel the rounded
+    mean of a ``factor`` x ``factor`` block (area averaging; ``factor`` must divide H and W)."""
+    if factor == 1:
+        return frames
+    h, w = frames.shape[-3:-1]
+    if h % factor or w % factor:
+        raise ValueError(f"{w}x{h} frames cannot be reduced {factor} times (it must divide both sides)")
+    blocks = frames.reshape(frames.shape[:-3] + (h // factor, factor, w // factor, factor, frames.shape[-1]))
+    total = blocks.sum(axis=(-4, -2), dtype=np.uint32)
+    return ((total + factor * factor // 2) // (factor * factor)).astype(np.uint8)
+
+
+def sampled_frame_indices(num_frames: int, count: int) -> np.ndarray:
+    """The frames ``sample_frames_evenly`` picks: ``count`` (at most ``num_frames``) spread evenly
+    from the first frame to the last, ascending."""
+    return np.unique(np.linspace(0, num_frames - 1, min(count, num_frames)).round().astype(int))
+
+
+def sample_frames_evenly(paths, count: int = 30, *, names=None, frame_sizes=None, reduce: int = 1) -> np.ndarray:
     """(count, C, H, W, 3) uint8 frames spread evenly over the sources (for a background model
-    learned from the video itself, ``image.fit_background``), read in one pass; ``names`` and
-    ``frame_sizes`` as ``MultiViewVideo``'s."""
-    with MultiViewVideo(paths, names, frame_sizes=frame_sizes) as video:
-        if len(set(video.sizes)) != 1:
-            raise VideoFileError("sampling frames needs cameras of one image size")
-        wanted = set(np.linspace(0, video.num_frames - 1, min(count, video.num_frames)).round().astype(int).tolist())
-        picked = []
-        for first, frames in video.chunks(32):
-            picked += [frames[:, i] for i in range(frames.shape[1]) if first + i in wanted]
-        return np.stack(picked)
+    learned from the video itself, ``image.fit_background``), read in one pass; ``names``,
+    ``frame_sizes`` and ``reduce`` as ``MultiViewVideo``'s. The frames are
+    ``sampled_frame_indices(num_frames, count)`` (``MultiViewVideo.sample`` says which)."""
+    with MultiViewVideo(paths, names, frame_sizes=frame_sizes, reduce=reduce) as video:
+        return video.sample(count)[1]
 
 
 class VideoWriter:

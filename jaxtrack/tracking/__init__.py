@@ -82,5 +82,12 @@ from ._subject import leg_length as leg_length
 from ._subject import limb_lengths_of as limb_lengths_of
 from ._subject import motion_subjects_prior as motion_subjects_prior
 from ._subject import subject_body as subject_body
+from ._video_input import MIN_COVERAGE as MIN_COVERAGE
+from ._video_input import PERSON_PIXELS as PERSON_PIXELS
 from ._video_input import VideoInput as VideoInput
+from ._video_input import choose_reduction as choose_reduction
+from ._video_input import common_reductions as common_reductions
+from ._video_input import keypoint_boxes as keypoint_boxes
+from ._video_input import preview_reduction as preview_reduction
 from ._video_input import sequence_from_video as sequence_from_video
+from ._video_input import silhouette_coverage as silhouette_coverage

@@ -88,6 +88,8 @@ FIT_KEY_TAG = 2**31 - 1  # fold_in tag of a tracker's dynamics-fit key (its runs
 PIXEL_SAMPLE_TAG = 2**31 - 2  # fold_in tag of a test scene's pixel-sample key
 START_TAG = 2**31 - 3  # fold_in tag of the automatic start's search key
 RADII_SAMPLE_TAG = 2**31 - 4  # fold_in tag of the pixels the capsule radii are fitted on
+CALIBRATION_SAMPLE_TAG = 2**31 - 5  # fold_in tag of the pixels the body is calibrated on
+START_SAMPLE_TAG = 2**31 - 6  # fold_in tag of the pixels the automatic start searches on
 
 
 
@@ -536,9 +538,20 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             # another person's stance on this person's legs (a root held 8 cm low was never recovered: docs/subjects.md)
             root_height = root_height * leg_length(body_model) / root_height_legs
             say(f"{name}: the automatic start holds the root at {root_height:.3f} m (the motion's height on this body's legs)")
+        start_search = start_search or StartSearch()
+        searched_frames = jax.tree.map(lambda x: jnp.asarray(x[: start_search.frames]), observations)
+        if pixel_samples is not None and _samples_pixels(searched if not isinstance(searched, ObservationPart) else searched.term):
+            # on sampled pixels, as the tracker scores them: every pixel of 4 views of 272x480 held 3.8 GB for the search
+            if isinstance(searched, ObservationPart):
+                sampled, picked = _on_sampled_pixels(searched.term, searched_frames["silhouettes"],
+                                                     jax.random.fold_in(key, START_SAMPLE_TAG), pixel_samples)
+                searched, searched_frames = ObservationPart(sampled, "silhouettes"), {**searched_frames, "silhouettes": picked}
+            else:
+                searched, searched_frames = _on_sampled_pixels(searched, searched_frames, jax.random.fold_in(key, START_SAMPLE_TAG),
+                                                               pixel_samples)
         initial_pose, found = automatic_start(
-            jax.random.fold_in(key, START_TAG), searched, jax.tree.map(jnp.asarray, observations), start_model, rig,
-            body_model.skeleton, root_height=root_height, search=start_search or StartSearch(),
+            jax.random.fold_in(key, START_TAG), searched, searched_frames, start_model, rig,
+            body_model.skeleton, root_height=root_height, search=start_search,
             silhouettes=None if observed is None else observed[:, 0], keypoints=None if keypoints is None else keypoints[:, 0])
         say(f"{name}: automatic start: the root placed by the {found['placed_by']}, heading {np.degrees(found['heading']):.0f} deg")
     else:
@@ -565,6 +578,11 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             f"{'' if height is None else f' (height {height:g} m)'}")
         floor = make_ground_prior(body_model.skeleton, CALIBRATION_CLEARANCE if ground_clearance is None else ground_clearance)
         calibration_inputs = (np.repeat(initial_pose[None], count, axis=0), jax.tree.map(lambda x: jnp.asarray(x[:count]), observations))
+        calibrated_on = likelihood
+        if pixel_samples is not None:  # on sampled pixels, as the tracker scores them (every pixel of 4 views of 272x480: minutes)
+            calibrated_on, sampled = _on_sampled_pixels(likelihood, calibration_inputs[1],
+                                                        jax.random.fold_in(key, CALIBRATION_SAMPLE_TAG), pixel_samples)
+            calibration_inputs = (calibration_inputs[0], sampled)
         prior_lengths, posture = motion_subjects_prior(donors) if calibration_prior != "default" else (None, None)
         posture = posture if calibration_prior == "motion" else None
         if prior_lengths is not None:
@@ -579,7 +597,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                 + ", ".join(f"{n} {1000 * v:.0f} +- {1000 * measured.standard_errors[n]:.0f}" for n, v in measured.lengths.items()))
         alone = keypoint_terms(likelihood)
         try:  # with keypoints: the limb lengths from them, the radii from every cue (docs/body.md)
-            calibrated, fitted_poses, calibration = calibrate_body_from_keypoints(likelihood + floor, *calibration_inputs,
+            calibrated, fitted_poses, calibration = calibrate_body_from_keypoints(calibrated_on + floor, *calibration_inputs,
                                                                                   **calibration_options)
             if alone is not None and calibration.cues == "keypoints":
                 print(f"warning: {name}: fitting the capsule radii to the {' and '.join(recipe.observes)} did not converge; the "
@@ -590,7 +608,8 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
                 print(f"warning: {name}: {err} (from the 2-D keypoints); calibrating from the {' and '.join(recipe.observes)} "
                       "together", file=sys.stderr)
                 try:
-                    calibrated, fitted_poses, calibration = calibrate_body(likelihood + floor, *calibration_inputs, **calibration_options)
+                    calibrated, fitted_poses, calibration = calibrate_body(calibrated_on + floor, *calibration_inputs,
+                                                                           **calibration_options)
                     failure = None
                 except ConfigurationError as second:
                     failure = second

@@ -1,10 +1,14 @@
-"""From a user's files to a test sequence: calibrated videos (and background videos, and a
-detector's keypoints) -> silhouettes by background subtraction -> a ``Sequence`` to track.
+"""From a user's files to a test sequence, in stages: calibrated videos (and background videos,
+and a detector's keypoints) -> decoded and averaged down to the tracking resolution -> a
+background model -> silhouettes by background subtraction -> a ``Sequence`` to track.
 
-The videos are decoded in chunks (``io.MultiViewVideo``); the background model comes from the
-background videos when given, else from frames spread over the videos themselves
-(``io.sample_frames_evenly``, the person moving). Each chunk's silhouettes are kept as bits of
-one byte per pixel; the pictures are kept only when asked (001's edge likelihood reads them).
+The videos are decoded in chunks (``io.MultiViewVideo``), each frame averaged down to the tracking
+resolution as it is decoded (``reduce``; ``"auto"`` chooses it from the person's height in
+pixels), so no full-resolution frame outlives its chunk. The background model comes from frames
+spread over the background videos when given, else over the videos themselves
+(``io.sample_frames_evenly``, the person moving), at that resolution. Each chunk's silhouettes
+are kept as one byte per pixel; the pictures are kept only when asked (001's edge likelihood
+reads them).
 
 Nothing is lost to bad frames: a frame that cannot be decoded, or a camera that sees nobody
 (an empty silhouette), ends the sequence before that frame, and the reason is returned with
@@ -22,9 +26,13 @@ import numpy as np
 
 from ..camera import CameraRig
 from ..image import fit_background, subtract_background
-from ..io import MultiViewVideo, Sequence, VideoFileError, sample_frames_evenly
+from ..io import MultiViewVideo, Sequence, VideoFileError, reduce_frames
 
 BACKGROUND_SAMPLES = 40  # frames spread over the video for its own background model
+PREVIEW_LONG_SIDE = 640  # the background samples' longer side before the tracking resolution is chosen (pixels)
+PERSON_PIXELS = 120  # the person's height at the resolution "auto" chooses (pixels)
+PERSON_MARGIN = 0.15  # a keypoint box grows by this share of its height on every side to hold the whole body
+MIN_COVERAGE = 0.2  # the median share of a keypoint box the silhouettes must fill to be trusted
 
 
 @dataclasses.dataclass
@@ -33,7 +41,8 @@ class VideoInput:
 
     Attributes:
         sequence: the cameras, fps, silhouettes (C, T, H, W) and keypoints (if given) of the
-            frames read, T of them.
+            frames read, T of them, at the tracking resolution (the cameras and keypoints
+            rescaled with it).
         total_frames: the videos' length.
         stopped: why reading stopped before the end (None: it did not): the frame and camera.
         seconds: time spent decoding ("decode"), fitting the background model ("background
@@ -42,12 +51,80 @@ class VideoInput:
             the wall time, not to each stage's cost alone), "silhouettes", the wall time from the
             first chunk's decoding to the last chunk's masks, and "open and close", the videos'
             (once per video: ffmpeg counting each video's frames, starting and stopping).
+        reduce: the videos' pixels per tracking pixel, on each side (1: full resolution).
+        rig: the calibration's cameras, at the videos' resolution.
+        keypoints: (C, T, 15, 3) the detections in the videos' pixels, or None.
+        coverage: (t, C) the share of the keypoints' box the silhouettes fill on the background
+            samples (``silhouette_coverage``), or None without keypoints.
+        empty_frames: (C,) per camera, the frames read whose silhouette is empty (with keypoints
+            they do not stop the reading: the keypoints carry them).
     """
 
     sequence: Sequence
     total_frames: int
     stopped: str | None
     seconds: dict
+    reduce: int = 1
+    rig: CameraRig | None = None
+    keypoints: np.ndarray | None = None
+    coverage: np.ndarray | None = None
+    empty_frames: np.ndarray | None = None
+
+    def at_source_resolution(self) -> Sequence:
+        """The sequence with the calibration's cameras and the keypoints in the videos' pixels,
+        without silhouettes or pictures (what an estimate file keeps)."""
+        rig = self.rig
+        return self.sequence.replace(camera_K=np.asarray(rig.K, np.float64), image_size=np.asarray(rig.image_size, np.int64),
+                                     silhouettes=None, images=None, keypoints2d=self.keypoints)
+
+    def camera_coverage(self) -> np.ndarray:
+        """(C,) per camera, the median over the background samples of ``coverage`` (NaN where no
+        sample shows keypoints, or without keypoints)."""
+        if self.coverage is None:
+            return np.full(len(self.rig.names), np.nan)
+        return np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in self.coverage.T])
+
+    def untrusted_cameras(self, minimum: float = MIN_COVERAGE) -> list[str]:
+        """The cameras whose silhouettes fill under ``minimum`` of the keypoints' boxes
+        (``camera_coverage``: a background model that holds the person, or a person the
+        subtraction misses), or are empty on some frame read."""
+        empty = np.zeros(len(self.rig.names), int) if self.empty_frames is None else self.empty_frames
+        return [str(n) for n, m, e in zip(self.rig.names, self.camera_coverage(), empty) if m < minimum or e > 0]
+
+
+def common_reductions(sizes) -> list[int]:
+    """The whole factors that divide every camera's width and height, (width, height) each,
+    ascending (1 first)."""
+    sides = [int(v) for size in sizes for v in size]
+    return [f for f in range(1, min(sides) + 1) if all(side % f == 0 for side in sides)]
+
+
+def preview_reduction(sizes, long_side: int = PREVIEW_LONG_SIDE) -> int:
+    """The smallest common reduction that brings every camera's longer side to ``long_side``
+    pixels or under (the largest there is, when none does)."""
+    factors = common_reductions(sizes)
+    return next((f for f in factors if max(max(size) for size in sizes) / f <= long_side), factors[-1])
+
+
+def reduction_for_resolution(sizes, resolution) -> int:
+    """The reduction from the cameras' ``sizes`` to ``resolution`` = (width, height): the same
+    whole factor on both sides of every camera, or ``ValueError`` saying which would do."""
+    width, height = (int(v) for v in resolution)
+    factors = {(w / width, h / height) for w, h in sizes}
+    factor = next(iter(factors))[0]
+    if len(factors) != 1 or factor != next(iter(factors))[1] or factor != int(factor) or factor < 1:
+        choices = ", ".join(f"{sizes[0][0] // f}x{sizes[0][1] // f}" for f in common_reductions(sizes)[1:5])
+        raise ValueError(f"--resolution {width}x{height}: the videos' frames ({sizes[0][0]}x{sizes[0][1]}) must be a whole "
+                         f"number of times as large on both sides (e.g. {choices})")
+    return int(factor)
+
+
+def choose_reduction(sizes, preview: int, person_height: float, person_pixels: int = PERSON_PIXELS) -> int:
+    """The largest common reduction, a multiple of ``preview``, at which a person
+    ``person_height`` pixels tall in the videos stays ``person_pixels`` tall or more
+    (``preview`` when even that is smaller)."""
+    factors = [f for f in common_reductions(sizes) if f % preview == 0 and person_height / f >= person_pixels]
+    return max(factors, default=preview)
 
 
 @jax.jit
@@ -66,8 +143,57 @@ def _frame_sizes(rig: CameraRig) -> list[tuple[int, int]]:
     return [(int(w), int(h)) for w, h in np.asarray(rig.image_size)]
 
 
+def keypoint_boxes(keypoints, reduce: int, size, *, margin: float = 0.0) -> np.ndarray:
+    """(C, h, w) bool: per camera, the bounding box of one frame's confident keypoints (C, K, 3),
+    in the videos' pixels, grown by ``margin`` of its height on every side, on the grid of
+    ``size`` = (w, h) tracking pixels ``reduce`` times smaller. A camera that sees fewer than
+    two keypoints marks nothing."""
+    width, height = size
+    boxes = np.zeros((len(keypoints), height, width), bool)
+    for c, points in enumerate(np.asarray(keypoints)):
+        seen = points[points[:, 2] > 0.3, :2]
+        if len(seen) < 2:
+            continue
+        low, high = seen.min(axis=0), seen.max(axis=0)
+        grow = margin * (high[1] - low[1])
+        x0, y0 = np.floor((low - grow + 0.5) / reduce).astype(int)
+        x1, y1 = np.ceil((high + grow + 0.5) / reduce).astype(int)
+        boxes[c, max(y0, 0):max(min(y1, height), 0), max(x0, 0):max(min(x1, width), 0)] = True
+    return boxes
+
+
+def silhouette_coverage(masks, keypoints, reduce: int) -> np.ndarray:
+    """(t, C) the share of each frame's keypoint box (``keypoint_boxes``, no margin) that the
+    silhouettes ``masks`` (t, C, h, w) fill; NaN where a camera sees no keypoints."""
+    masks = np.asarray(masks, bool)
+    size = (masks.shape[-1], masks.shape[-2])
+    coverage = np.full(masks.shape[:2], np.nan)
+    for t, (mask, points) in enumerate(zip(masks, keypoints)):
+        boxes = keypoint_boxes(points, reduce, size)
+        area = boxes.sum(axis=(1, 2))
+        coverage[t] = np.where(area > 0, (mask & boxes).sum(axis=(1, 2)) / np.maximum(area, 1), np.nan)
+    return coverage
+
+
+def _person_height(model, pictures, keypoints, reduce: int) -> tuple[float, str]:
+    """The person's height in the videos' pixels, and what measured it: the keypoints' extent
+    (over 0.9: the head joint is not the crown) on the first frames that show them, else the
+    silhouettes of the background samples ``pictures`` (t, C, h, w, 3) at ``reduce``."""
+    from ._pipeline import keypoint_height_pixels, person_height_pixels
+
+    if keypoints is not None:
+        heights = [keypoint_height_pixels(keypoints[:, t]) for t in range(min(keypoints.shape[1], 30))]
+        heights = [h for h in heights if h > 0]
+        if heights:
+            return float(np.median(heights)) / 0.9, "keypoints"
+    masks = np.asarray(subtract_background(model, pictures).mask)  # (t, C, h, w)
+    heights = [person_height_pixels(frame) for frame in masks]
+    return float(np.median(heights)) * reduce, "silhouettes"
+
+
 def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
-                        frames: int | None = None, chunk: int = 32, keep_images: bool = False, say=None) -> VideoInput:
+                        frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
+                        say=None) -> VideoInput:
     """Read calibrated videos into a test sequence (module docstring).
 
     Args:
@@ -80,10 +206,17 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         keypoints: (C, T', 15, 3) detections (``io.read_keypoint_sources``), T' >= the frames read.
         frames: read at most this many frames.
         keep_images: keep the pictures as the sequence's ``images``.
+        resolution: None: the videos' own; (width, height): frames averaged down to it as they are
+            decoded (a whole factor of the videos' size on both sides); ``"auto"``: the largest
+            whole reduction at which the person is still ``PERSON_PIXELS`` tall, measured on the
+            keypoints, else on silhouettes of the background samples at ``PREVIEW_LONG_SIDE``.
+            The background model, the silhouettes and the pictures are made at that resolution:
+            no full-resolution frame is held beyond the chunk being decoded.
 
     Raises:
         VideoFileError: videos of different lengths or sizes, or sizes that are not the rig's.
-        ValueError: a count of videos that is not the rig's, or keypoints of other cameras.
+        ValueError: a count of videos that is not the rig's, keypoints of other cameras, or a
+            resolution that is not a whole reduction of the videos'.
     """
     say = say or (lambda *a, **k: None)
     if len({tuple(int(v) for v in size) for size in rig.image_size}) != 1:
@@ -92,29 +225,70 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     if len(videos) != rig.num_views:
         raise ValueError(f"the calibration has {rig.num_views} cameras ({', '.join(rig.names)}): give one video per camera "
                          f"in that order (got {len(videos)})")
-    seconds = {"decode": 0.0, "background model": 0.0, "background": 0.0, "silhouettes": 0.0, "open and close": 0.0}
-    if background is not None:
-        if len(background) != rig.num_views:
-            raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
-        with MultiViewVideo(background, names=rig.names, frame_sizes=_frame_sizes(rig)) as empty:
-            for line in empty.adjusted:
-                say(f"warning: background {line}")
-            start = time.perf_counter()
-            pictures = np.concatenate([c for _, c in empty.chunks(chunk)], axis=1).swapaxes(0, 1)  # (t, C, H, W, 3)
-            seconds["decode"] += time.perf_counter() - start
-        source = f"{pictures.shape[0]} background frames per camera"
+    if background is not None and len(background) != rig.num_views:
+        raise ValueError(f"give one background video per camera ({rig.num_views}), got {len(background)}")
+    sizes = _frame_sizes(rig)
+    if resolution is None:
+        reduce = preview = 1
+    elif isinstance(resolution, str):
+        if resolution != "auto":
+            raise ValueError(f"resolution must be (width, height), 'auto' or None, got {resolution!r}")
+        reduce, preview = None, preview_reduction(sizes)
     else:
-        start = time.perf_counter()
-        pictures = sample_frames_evenly(videos, BACKGROUND_SAMPLES, names=rig.names, frame_sizes=_frame_sizes(rig))  # (t, C, H, W, 3)
-        seconds["decode"] += time.perf_counter() - start
-        source = f"the median of {pictures.shape[0]} frames spread over the videos"
+        reduce = preview = reduction_for_resolution(sizes, resolution)
+    if keypoints is not None:
+        keypoints = np.asarray(keypoints)
+        if keypoints.ndim != 4 or keypoints.shape[0] != rig.num_views:
+            raise ValueError(f"keypoints of shape {keypoints.shape}: expected one (T, 15, 3) array per camera ({rig.num_views})")
+    seconds = {"decode": 0.0, "background model": 0.0, "background": 0.0, "silhouettes": 0.0, "open and close": 0.0}
     start = time.perf_counter()
-    model = jax.block_until_ready(fit_background(pictures))
+    with MultiViewVideo(background if background is not None else videos, names=rig.names, frame_sizes=sizes,
+                        reduce=preview) as sampled:
+        if background is not None:
+            for line in sampled.adjusted:
+                say(f"warning: background {line}")
+        indices, pictures = sampled.sample(BACKGROUND_SAMPLES)  # (t,), (t, C, h, w, 3)
+    seconds["decode"] += time.perf_counter() - start
+    source = (f"{pictures.shape[0]} frames of the empty scene per camera" if background is not None
+              else f"the median of {pictures.shape[0]} frames spread over the videos")
+    person = None  # (t, C, h, w) where the keypoints say the person is, on the sampled frames of the videos
+    if background is None and keypoints is not None:
+        person = np.stack([keypoint_boxes(keypoints[:, i], preview, (pictures.shape[-2], pictures.shape[-3]),
+                                          margin=PERSON_MARGIN) if i < keypoints.shape[1] else
+                           np.zeros(pictures.shape[1:-1], bool) for i in indices])
+        source += ", each pixel's over the frames whose keypoints leave it free"
+    start = time.perf_counter()
+    model = jax.block_until_ready(fit_background(pictures, exclude=person))
+    if reduce is None:  # chosen from the person's size
+        height, measured = _person_height(model, pictures, keypoints, preview)
+        reduce = choose_reduction(sizes, preview, height)
+        width_, height_ = sizes[0][0] // reduce, sizes[0][1] // reduce
+        say(f"tracking at {width_}x{height_} (the videos' {sizes[0][0]}x{sizes[0][1]} averaged over {reduce}x{reduce} pixels): the "
+            f"person is about {height:.0f} px tall in the videos ({measured}), {height / reduce:.0f} px at that size "
+            f"(the largest reduction that keeps {PERSON_PIXELS} px; --resolution to choose)")
+        if reduce != preview:
+            factor = reduce // preview
+            pictures = reduce_frames(pictures, factor)
+            if person is not None:  # a tracking pixel is the person's where any of its video pixels is
+                t, c, h, w = person.shape
+                person = person.reshape(t, c, h // factor, factor, w // factor, factor).any(axis=(3, 5))
+            model = jax.block_until_ready(fit_background(pictures, exclude=person))
     seconds["background model"] += time.perf_counter() - start
+    coverage = None
+    if keypoints is not None:  # do the silhouettes show the person the keypoints place?
+        masks = np.asarray(subtract_background(model, pictures).mask)
+        coverage = silhouette_coverage(masks, [keypoints[:, i] if i < keypoints.shape[1] else
+                                               np.zeros(keypoints.shape[:1] + keypoints.shape[2:]) for i in indices], reduce)
+    del pictures, person
     say(f"background model: {source}")
+    if reduce > 1:
+        rig_used = rig.resized(sizes[0][0] // reduce, sizes[0][1] // reduce)
+    else:
+        rig_used = rig
     masks, images, stopped = [], [], None
+    empty_frames = np.zeros(rig.num_views, int)  # per camera, the frames read whose silhouette is empty
     start = time.perf_counter()
-    video = MultiViewVideo(videos, names=rig.names, frame_sizes=_frame_sizes(rig))
+    video = MultiViewVideo(videos, names=rig.names, frame_sizes=sizes, reduce=reduce)
     seconds["open and close"] += time.perf_counter() - start
     with video:
         for line in video.adjusted:
@@ -122,8 +296,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         total = video.num_frames
         wanted = total if frames is None else min(int(frames), total)
         if keypoints is not None:
-            keypoints = np.asarray(keypoints)
-            if keypoints.shape[0] != rig.num_views or keypoints.shape[1] < wanted:
+            if keypoints.shape[1] < wanted:
                 raise ValueError(f"keypoints of {keypoints.shape[0]} cameras x {keypoints.shape[1]} frames, but the videos have "
                                  f"{rig.num_views} cameras x {wanted} frames")
         fps = float(fps if fps is not None else (video.fps or 0.0))
@@ -138,6 +311,9 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             mask, area = (np.asarray(x) for x in foreground)  # (C, t, H, W), (C, t)
             seconds["background"] += time.perf_counter() - start
             empty = np.argwhere(area == 0)
+            empty_frames[:] += (area == 0).sum(axis=1)
+            if keypoints is not None:  # the keypoints can carry the frames the silhouettes miss
+                empty = empty[:0]
             t = int(empty[:, 1].min()) if len(empty) else mask.shape[1]
             masks.append(mask[:, :t])
             if keep_images:
@@ -180,11 +356,16 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     count = sum(m.shape[1] for m in masks)
     if count == 0:
         raise VideoFileError(f"nothing to track: {stopped}")
-    silhouettes = np.concatenate(masks, axis=1).astype(np.uint8)
+    silhouettes = np.concatenate(masks, axis=1).view(np.uint8)  # bool and uint8 share a byte: no copy
+    kept = None if keypoints is None else np.asarray(keypoints[:, :count], np.float32)
+    moved = None
+    if kept is not None:  # into the tracking pixels (centres at integer coordinates, as the intrinsics)
+        moved = kept.copy()
+        moved[..., :2] = np.where(kept[..., 2:] > 0, (kept[..., :2] + 0.5) / reduce - 0.5, kept[..., :2])
     sequence = Sequence.create(
-        fps=fps, camera_K=np.asarray(rig.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
+        fps=fps, camera_K=np.asarray(rig_used.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
         camera_t=np.asarray(rig.t, np.float64), camera_dist=np.asarray(rig.dist, np.float64),
-        image_size=np.asarray(rig.image_size, np.int64), camera_names=np.asarray(rig.names), silhouettes=silhouettes,
-        images=np.concatenate(images, axis=1) if keep_images else None,
-        keypoints2d=None if keypoints is None else np.asarray(keypoints[:, :count], np.float32))
-    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds)
+        image_size=np.asarray(rig_used.image_size, np.int64), camera_names=np.asarray(rig.names), silhouettes=silhouettes,
+        images=np.concatenate(images, axis=1) if keep_images else None, keypoints2d=moved)
+    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds, reduce=reduce, rig=rig,
+                      keypoints=kept, coverage=coverage, empty_frames=empty_frames)
