@@ -460,7 +460,8 @@ def _video_test(args):
     observes = get_likelihood(args.likelihood or DEFAULT_LIKELIHOOD).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
                                keep_images=bool({"edges", "foreground", "images"} & set(observes)),
-                               resolution=args.resolution or "auto", say=print)
+                               resolution=args.resolution or "auto", say=print,
+                               through_empty=args.likelihood is None)  # the keypoints alone then carry empty frames
     print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['silhouettes']:.1f} s, "
           f"decoding side by side (its model {read.seconds['background model']:.1f} s, opening and closing the videos "
           f"{read.seconds['open and close']:.1f} s)")

@@ -56,8 +56,8 @@ class VideoInput:
         keypoints: (C, T, 15, 3) the detections in the videos' pixels, or None.
         coverage: (t, C) the share of the keypoints' box the silhouettes fill on the background
             samples (``silhouette_coverage``), or None without keypoints.
-        empty_frames: (C,) per camera, the frames read whose silhouette is empty (with keypoints
-            they do not stop the reading: the keypoints carry them).
+        empty_frames: (C,) per camera, the frames read whose silhouette is empty (with
+            ``through_empty`` they do not stop the reading: the keypoints carry them).
     """
 
     sequence: Sequence
@@ -193,7 +193,7 @@ def _person_height(model, pictures, keypoints, reduce: int) -> tuple[float, str]
 
 def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
                         frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
-                        say=None) -> VideoInput:
+                        through_empty: bool = False, say=None) -> VideoInput:
     """Read calibrated videos into a test sequence (module docstring).
 
     Args:
@@ -212,6 +212,9 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             keypoints, else on silhouettes of the background samples at ``PREVIEW_LONG_SIDE``.
             The background model, the silhouettes and the pictures are made at that resolution:
             no full-resolution frame is held beyond the chunk being decoded.
+        through_empty: with keypoints, an empty silhouette does not stop the reading (the
+            keypoints carry those frames; ``empty_frames`` counts them); else the frames before
+            it are returned with the reason.
 
     Raises:
         VideoFileError: videos of different lengths or sizes, or sizes that are not the rig's.
@@ -236,6 +239,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         reduce, preview = None, preview_reduction(sizes)
     else:
         reduce = preview = reduction_for_resolution(sizes, resolution)
+    through_empty = bool(through_empty) and keypoints is not None
     if keypoints is not None:
         keypoints = np.asarray(keypoints)
         if keypoints.ndim != 4 or keypoints.shape[0] != rig.num_views:
@@ -263,9 +267,13 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         height, measured = _person_height(model, pictures, keypoints, preview)
         reduce = choose_reduction(sizes, preview, height)
         width_, height_ = sizes[0][0] // reduce, sizes[0][1] // reduce
-        say(f"tracking at {width_}x{height_} (the videos' {sizes[0][0]}x{sizes[0][1]} averaged over {reduce}x{reduce} pixels): the "
-            f"person is about {height:.0f} px tall in the videos ({measured}), {height / reduce:.0f} px at that size "
-            f"(the largest reduction that keeps {PERSON_PIXELS} px; --resolution to choose)")
+        if reduce == 1:
+            say(f"tracking at the videos' {width_}x{height_}: the person is about {height:.0f} px tall ({measured}), under "
+                f"{2 * PERSON_PIXELS} px (--resolution to choose)")
+        else:
+            say(f"tracking at {width_}x{height_} (the videos' {sizes[0][0]}x{sizes[0][1]} averaged over {reduce}x{reduce} pixels): "
+                f"the person is about {height:.0f} px tall in the videos ({measured}), {height / reduce:.0f} px at that size "
+                f"(the largest reduction that keeps {PERSON_PIXELS} px; --resolution to choose)")
         if reduce != preview:
             factor = reduce // preview
             pictures = reduce_frames(pictures, factor)
@@ -275,7 +283,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             model = jax.block_until_ready(fit_background(pictures, exclude=person))
     seconds["background model"] += time.perf_counter() - start
     coverage = None
-    if keypoints is not None:  # do the silhouettes show the person the keypoints place?
+    if keypoints is not None and background is None:  # do the silhouettes show the person the keypoints place?
         masks = np.asarray(subtract_background(model, pictures).mask)
         coverage = silhouette_coverage(masks, [keypoints[:, i] if i < keypoints.shape[1] else
                                                np.zeros(keypoints.shape[:1] + keypoints.shape[2:]) for i in indices], reduce)
@@ -312,7 +320,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             seconds["background"] += time.perf_counter() - start
             empty = np.argwhere(area == 0)
             empty_frames[:] += (area == 0).sum(axis=1)
-            if keypoints is not None:  # the keypoints can carry the frames the silhouettes miss
+            if through_empty:  # the keypoints carry the frames the silhouettes miss
                 empty = empty[:0]
             t = int(empty[:, 1].min()) if len(empty) else mask.shape[1]
             masks.append(mask[:, :t])

@@ -41,7 +41,7 @@ def write_overlay_video(path, videos, rig: CameraRig, joints3d, parents, *, fps:
     joints3d = np.asarray(joints3d, np.float64)
     frames = joints3d.shape[0]
     uv, _, front = project_points(rig, jnp.asarray(joints3d, rig.K.dtype))
-    uv = np.asarray(uv, np.float64)  # (T, J, C, 2)
+    uv = np.array(uv, np.float64)  # (T, J, C, 2), a copy to write into (a float64 rig's is read-only)
     uv[~np.asarray(front)] = np.nan
     thickness = 1 if int(rig.image_size[0][1]) <= 240 else 2
     with MultiViewVideo(videos, names=rig.names) as video, VideoWriter([path], fps) as writer:
