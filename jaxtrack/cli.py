@@ -467,10 +467,10 @@ def _video_test(args):
           f"{read.seconds['open and close']:.1f} s)")
     if read.stopped:
         print(f"warning: the videos' frames from {read.sequence.num_frames} on are not tracked: {read.stopped}", file=sys.stderr)
-    if keypoints is not None:
+    if read.coverage is not None:
         print("silhouettes against the keypoints (the share of each camera's keypoint box they fill, median over the "
               "background samples): " + ", ".join(f"{n} {c:.2f}" for n, c in zip(rig.names, read.camera_coverage())))
-    return read, read.stopped
+    return read
 
 
 def _video_likelihood(args, read) -> str | None:
@@ -479,11 +479,11 @@ def _video_likelihood(args, read) -> str | None:
     the person its keypoints place (None: the default)."""
     from .tracking import MIN_COVERAGE
 
-    if args.likelihood is not None or read.keypoints is None:
+    if args.likelihood is not None or read.sequence.keypoints2d is None:
         return None
     untrusted = read.untrusted_cameras()
     if untrusted:
-        empty = {n: int(e) for n, e in zip(read.rig.names, read.empty_frames) if e}
+        empty = {str(n): int(e) for n, e in zip(read.sequence.camera_names, read.empty_frames) if e}
         print(f"warning: the silhouettes of {', '.join(untrusted)} fill under {MIN_COVERAGE:.0%} of the keypoints' box or are "
               "empty on some frames (the background model holds the person, or the subtraction misses them"
               + (f"; empty: {', '.join(f'{n} on {e} frames' for n, e in empty.items())}" if empty else "")
@@ -552,8 +552,8 @@ def _track(args) -> int:
     model, header = load_model(args.model)
     stopped = None
     if args.video:
-        read, stopped = _video_test(args)
-        sequence = read.sequence  # at the tracking resolution, which the spec then leaves as it is
+        read = _video_test(args)
+        sequence, stopped = read.sequence, read.stopped  # at the tracking resolution, which the spec then leaves as it is
         spec = dataclasses.replace(spec, resolution=None)
         chosen = _video_likelihood(args, read)
         if chosen is not None:
@@ -569,7 +569,7 @@ def _track(args) -> int:
         raise ValueError("give a test sequence file, or the videos (--video ... --calibration ...)")
     has_truth = sequence.joints3d is not None or sequence.pose is not None
     spec = dataclasses.replace(spec, start=args.start or ("truth" if has_truth else "auto"))
-    kept = read.at_source_resolution() if args.video else sequence  # the estimate file: the calibration's cameras
+    kept = read.source if args.video else sequence  # the estimate file: the calibration's cameras
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
         done = len(poses)
@@ -598,7 +598,8 @@ def _track(args) -> int:
         from .body import humaneva_skeleton
         from .viz import write_overlay_video
 
-        write_overlay_video(args.overlay, args.video, read.rig, joints, humaneva_skeleton().parents, fps=sequence.fps)
+        write_overlay_video(args.overlay, args.video, read.source.rig(dtype=np.float64), joints,  # the videos' cameras
+                            humaneva_skeleton().parents, fps=sequence.fps)
         print(f"wrote {args.overlay}: the estimate over the videos")
     if degenerate > args.max_degenerate:
         print(f"jaxtrack track: error: on {100 * degenerate:.0f} % of the frames every particle's likelihood was -inf or NaN, "

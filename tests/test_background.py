@@ -66,3 +66,26 @@ def test_bad_background_inputs_are_refused():
     same = subtract_background(model, frames[:3])
     again = jax.jit(lambda f: subtract_background(model, f).mask)(frames[:3])  # jittable end to end
     np.testing.assert_array_equal(np.asarray(same.mask), np.asarray(again))
+
+
+def test_the_background_median_leaves_out_the_pixels_it_is_told_to():
+    """``exclude``: each pixel's median over the frames that leave it free, exactly where they
+    leave out an even number (the noise's median too); a pixel left by fewer than 3 frames takes
+    the median of all; none left out is the plain median; a mask of another shape is refused."""
+    rng = np.random.default_rng(1)
+    frames = rng.integers(0, 256, (9, 2, 4, 5, 3)).astype(np.uint8)  # (T, views, H, W, 3)
+    values = frames / 255.0
+    plain = fit_background(frames)
+    np.testing.assert_allclose(np.asarray(plain.colour), np.median(values, axis=0), atol=1e-6)
+    exclude = np.zeros(frames.shape[:-1], bool)
+    exclude[:4, :, :2] = True  # rows 0-1: 4 frames left out, 5 kept
+    exclude[:8, :, 3] = True  # row 3: one frame kept, under 3: the median of all
+    model = fit_background(frames, exclude=exclude)
+    kept = np.median(values[4:, :, :2], axis=0)
+    np.testing.assert_allclose(np.asarray(model.colour)[:, :2], kept, atol=1e-6)
+    noise = np.maximum(1.4826 * np.median(np.linalg.norm(values[4:, :, :2] - kept, axis=-1), axis=0), 3.0 / 255.0)
+    np.testing.assert_allclose(np.asarray(model.noise)[:, :2], noise, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(model.colour)[:, 2:], np.asarray(plain.colour)[:, 2:], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(model.noise)[:, 3], np.asarray(plain.noise)[:, 3], atol=1e-6)
+    with pytest.raises(ValueError, match="exclude must be the frames' shape without the colour axis"):
+        fit_background(frames, exclude=exclude[:, 0])

@@ -394,12 +394,14 @@ def test_frames_averaged_down_as_they_are_decoded(filmed, tmp_path):
     assert read.reduce == 2 and read.sequence.silhouettes.shape == (2, 6, 24, 32)
     np.testing.assert_allclose(read.sequence.camera_K, np.asarray(rig.resized(32, 24).K), rtol=1e-6)
     np.testing.assert_allclose(read.sequence.keypoints2d[..., :2], np.broadcast_to([15.5, 11.5], (2, 6, 15, 2)))  # (x + 0.5) / 2 - 0.5
-    source = read.at_source_resolution()
+    source = read.source
     np.testing.assert_allclose(source.camera_K, np.asarray(rig.K), rtol=1e-6)
     np.testing.assert_array_equal(source.keypoints2d, keypoints)
     assert source.silhouettes is None and tuple(source.image_size[0]) == (64, 48)
-    with pytest.raises(ValueError, match=r"whole number of times as large on both sides \(e\.g\. 32x24"):
+    with pytest.raises(ValueError, match=r"cannot resample 64x48 images to 48x24: the target must divide the size \(e\.g\. 32x24"):
         sequence_from_video(folders, rig, fps=30.0, resolution=(48, 24))
+    with pytest.raises(ValueError, match=r"the width would be averaged over 2 pixels and the height over 4; keep the aspect"):
+        sequence_from_video(folders, rig, fps=30.0, resolution=(32, 12))
 
 
 def test_the_tracking_resolution_is_chosen_from_the_person_size():

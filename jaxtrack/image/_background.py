@@ -87,35 +87,39 @@ def fit_background(frames, *, min_noise: float = 3.0 / 255.0, exclude=None) -> B
     frames = _check_frames(frames, "frames")
     if not (np.isfinite(min_noise) and min_noise > 0):
         raise ValueError(f"min_noise must be positive, got {min_noise!r}")
-    if exclude is None:
-        exclude = jnp.zeros(frames.shape[:-1], bool)
-    exclude = jnp.asarray(exclude, bool)
-    if exclude.shape != frames.shape[:-1]:
-        raise ValueError(f"exclude must be the frames' shape without the colour axis, {frames.shape[:-1]}, got {exclude.shape}")
+    if exclude is not None:
+        exclude = jnp.asarray(exclude, bool)
+        if exclude.shape != frames.shape[:-1]:
+            raise ValueError(f"exclude must be the frames' shape without the colour axis, {frames.shape[:-1]}, got "
+                             f"{exclude.shape}")
     min_noise = jnp.asarray(min_noise, frames.dtype)
     if frames.ndim == 4:
         return _fit(frames, exclude, min_noise)
     # one view at a time: the selection's intermediates for 4 views of 272x480 at once held 1.2 GB
-    views = [_fit(frames[:, v], exclude[:, v], min_noise) for v in range(frames.shape[1])]
+    views = [_fit(frames[:, v], None if exclude is None else exclude[:, v], min_noise) for v in range(frames.shape[1])]
     return jax.tree.map(lambda *xs: jnp.stack(xs), *views)
 
 
-def _median_leaving_out(values, exclude):
-    """The median over axis 0 of ``values`` (T, ...) without the entries ``exclude`` marks (same
-    shape): those set to -inf and +inf in turn; where fewer than ``MIN_BACKGROUND_FRAMES`` are
-    left, the median of all."""
+def _leaving_out(values, exclude):
+    """``values`` (T, ...) with the entries ``exclude`` marks (same shape) set to -inf and +inf
+    in turn, for a median over axis 0 that leaves them out (``fit_background``); where fewer
+    than ``MIN_BACKGROUND_FRAMES`` would be left, none is marked (the median of all)."""
+    exclude = exclude & (values.shape[0] - jnp.sum(exclude, axis=0) >= MIN_BACKGROUND_FRAMES)
     turn = jnp.cumsum(exclude, axis=0) % 2
-    masked = jnp.where(exclude, jnp.where(turn == 1, -jnp.inf, jnp.inf), values)
-    kept = values.shape[0] - jnp.sum(exclude, axis=0)
-    return jnp.where(kept >= MIN_BACKGROUND_FRAMES, median(masked, axis=0), median(values, axis=0))
+    return jnp.where(exclude, jnp.where(turn == 1, -jnp.inf, jnp.inf), values)
 
 
 @jax.jit
 def _fit(frames, exclude, min_noise):
-    colour = _median_leaving_out(frames, jnp.broadcast_to(exclude[..., None], frames.shape))
-    distance = jnp.linalg.norm(frames - colour, axis=-1)
-    noise = 1.4826 * _median_leaving_out(distance, exclude)
-    return BackgroundModel(colour, jnp.maximum(noise, min_noise))
+    if exclude is None:
+        colour = median(frames, axis=0)
+        distance = jnp.linalg.norm(frames - colour, axis=-1)
+        noise = median(distance, axis=0)
+    else:
+        colour = median(_leaving_out(frames, jnp.broadcast_to(exclude[..., None], frames.shape)), axis=0)
+        distance = jnp.linalg.norm(frames - colour, axis=-1)
+        noise = median(_leaving_out(distance, exclude), axis=0)
+    return BackgroundModel(colour, jnp.maximum(1.4826 * noise, min_noise))
 
 
 def subtract_background(model: BackgroundModel, frames, *, low: float = 8.0, high: float = 16.0,

@@ -351,7 +351,6 @@ class MultiViewVideo:
                     view[...] = reduce_frames(fit_frames(frames_, *wanted), self.reduce)
             yield first, (block if shared else views)
 
-
     def sample(self, count: int) -> tuple[np.ndarray, np.ndarray]:
         """``(indices (t,), frames (t, C, H, W, 3) uint8)``: ``count`` frames spread evenly over the
         sources (``sampled_frame_indices``), read in one pass from the start; the cameras must

@@ -384,8 +384,8 @@ def _is_silhouette_part(term) -> bool:
 
 def _samples_pixels(likelihood) -> bool:
     """Whether the likelihood's silhouettes can be scored on sampled pixels: a
-    ``SilhouetteLikelihood``, or a sum with one on the ``"silhouettes"`` entry of the frame."""
-    return isinstance(likelihood, SilhouetteLikelihood) or (
+    ``SilhouetteLikelihood``, one on the ``"silhouettes"`` entry of the frame, or a sum with one."""
+    return isinstance(likelihood, SilhouetteLikelihood) or _is_silhouette_part(likelihood) or (
         isinstance(likelihood, SumLikelihood) and any(_is_silhouette_part(t) for t in likelihood.terms))
 
 
@@ -394,9 +394,12 @@ def _on_sampled_pixels(likelihood, observations, key, samples: int):
     pixels per view and frame (``_samples_pixels`` must hold)."""
     if isinstance(likelihood, SilhouetteLikelihood):
         return SampledSilhouetteLikelihood.from_dense(likelihood), sample_frames(key, observations, samples=samples)
+    sampled = {**observations, "silhouettes": sample_frames(key, observations["silhouettes"], samples=samples)}
+    if _is_silhouette_part(likelihood):
+        return ObservationPart(SampledSilhouetteLikelihood.from_dense(likelihood.term), likelihood.key), sampled
     terms = tuple(ObservationPart(SampledSilhouetteLikelihood.from_dense(t.term), t.key) if _is_silhouette_part(t) else t
                   for t in likelihood.terms)
-    return SumLikelihood(terms), {**observations, "silhouettes": sample_frames(key, observations["silhouettes"], samples=samples)}
+    return SumLikelihood(terms), sampled
 
 
 def _pixel_samples(requested, likelihood, likelihood_name, width, height, name, say) -> int | None:
@@ -540,15 +543,10 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
             say(f"{name}: the automatic start holds the root at {root_height:.3f} m (the motion's height on this body's legs)")
         start_search = start_search or StartSearch()
         searched_frames = jax.tree.map(lambda x: jnp.asarray(x[: start_search.frames]), observations)
-        if pixel_samples is not None and _samples_pixels(searched if not isinstance(searched, ObservationPart) else searched.term):
+        if pixel_samples is not None and _samples_pixels(searched):
             # on sampled pixels, as the tracker scores them: every pixel of 4 views of 272x480 held 3.8 GB for the search
-            if isinstance(searched, ObservationPart):
-                sampled, picked = _on_sampled_pixels(searched.term, searched_frames["silhouettes"],
-                                                     jax.random.fold_in(key, START_SAMPLE_TAG), pixel_samples)
-                searched, searched_frames = ObservationPart(sampled, "silhouettes"), {**searched_frames, "silhouettes": picked}
-            else:
-                searched, searched_frames = _on_sampled_pixels(searched, searched_frames, jax.random.fold_in(key, START_SAMPLE_TAG),
-                                                               pixel_samples)
+            searched, searched_frames = _on_sampled_pixels(searched, searched_frames, jax.random.fold_in(key, START_SAMPLE_TAG),
+                                                           pixel_samples)
         initial_pose, found = automatic_start(
             jax.random.fold_in(key, START_TAG), searched, searched_frames, start_model, rig,
             body_model.skeleton, root_height=root_height, search=start_search,

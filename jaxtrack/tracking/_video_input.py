@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..camera import CameraRig
-from ..image import fit_background, subtract_background
+from ..image import fit_background, resolution_factors, subtract_background
 from ..io import MultiViewVideo, Sequence, VideoFileError, reduce_frames
 
 BACKGROUND_SAMPLES = 40  # frames spread over the video for its own background model
@@ -33,6 +33,7 @@ PREVIEW_LONG_SIDE = 640  # the background samples' longer side before the tracki
 PERSON_PIXELS = 120  # the person's height at the resolution "auto" chooses (pixels)
 PERSON_MARGIN = 0.15  # a keypoint box grows by this share of its height on every side to hold the whole body
 MIN_COVERAGE = 0.2  # the median share of a keypoint box the silhouettes must fill to be trusted
+BOX_CONFIDENCE = 0.3  # keypoints more confident than this bound the person's box (generous: a box left out is lost)
 
 
 @dataclasses.dataclass
@@ -52,10 +53,12 @@ class VideoInput:
             first chunk's decoding to the last chunk's masks, and "open and close", the videos'
             (once per video: ffmpeg counting each video's frames, starting and stopping).
         reduce: the videos' pixels per tracking pixel, on each side (1: full resolution).
-        rig: the calibration's cameras, at the videos' resolution.
-        keypoints: (C, T, 15, 3) the detections in the videos' pixels, or None.
+        source: the same sequence at the videos' resolution, without silhouettes or pictures:
+            the calibration's cameras, the keypoints in the videos' pixels (what an estimate
+            file keeps, and what an overlay draws over).
         coverage: (t, C) the share of the keypoints' box the silhouettes fill on the background
-            samples (``silhouette_coverage``), or None without keypoints.
+            samples (``silhouette_coverage``), or None without keypoints or with an empty-scene
+            video (its samples are not of the person).
         empty_frames: (C,) per camera, the frames read whose silhouette is empty (with
             ``through_empty`` they do not stop the reading: the keypoints carry them).
     """
@@ -64,32 +67,24 @@ class VideoInput:
     total_frames: int
     stopped: str | None
     seconds: dict
-    reduce: int = 1
-    rig: CameraRig | None = None
-    keypoints: np.ndarray | None = None
-    coverage: np.ndarray | None = None
-    empty_frames: np.ndarray | None = None
-
-    def at_source_resolution(self) -> Sequence:
-        """The sequence with the calibration's cameras and the keypoints in the videos' pixels,
-        without silhouettes or pictures (what an estimate file keeps)."""
-        rig = self.rig
-        return self.sequence.replace(camera_K=np.asarray(rig.K, np.float64), image_size=np.asarray(rig.image_size, np.int64),
-                                     silhouettes=None, images=None, keypoints2d=self.keypoints)
+    reduce: int
+    source: Sequence
+    coverage: np.ndarray | None
+    empty_frames: np.ndarray
 
     def camera_coverage(self) -> np.ndarray:
         """(C,) per camera, the median over the background samples of ``coverage`` (NaN where no
-        sample shows keypoints, or without keypoints)."""
+        sample shows keypoints, or without ``coverage``)."""
         if self.coverage is None:
-            return np.full(len(self.rig.names), np.nan)
+            return np.full(len(self.empty_frames), np.nan)
         return np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in self.coverage.T])
 
     def untrusted_cameras(self, minimum: float = MIN_COVERAGE) -> list[str]:
         """The cameras whose silhouettes fill under ``minimum`` of the keypoints' boxes
         (``camera_coverage``: a background model that holds the person, or a person the
         subtraction misses), or are empty on some frame read."""
-        empty = np.zeros(len(self.rig.names), int) if self.empty_frames is None else self.empty_frames
-        return [str(n) for n, m, e in zip(self.rig.names, self.camera_coverage(), empty) if m < minimum or e > 0]
+        names = [str(n) for n in self.sequence.camera_names]
+        return [n for n, m, e in zip(names, self.camera_coverage(), self.empty_frames) if m < minimum or e > 0]
 
 
 def common_reductions(sizes) -> list[int]:
@@ -106,17 +101,16 @@ def preview_reduction(sizes, long_side: int = PREVIEW_LONG_SIDE) -> int:
     return next((f for f in factors if max(max(size) for size in sizes) / f <= long_side), factors[-1])
 
 
-def reduction_for_resolution(sizes, resolution) -> int:
-    """The reduction from the cameras' ``sizes`` to ``resolution`` = (width, height): the same
-    whole factor on both sides of every camera, or ``ValueError`` saying which would do."""
-    width, height = (int(v) for v in resolution)
-    factors = {(w / width, h / height) for w, h in sizes}
-    factor = next(iter(factors))[0]
-    if len(factors) != 1 or factor != next(iter(factors))[1] or factor != int(factor) or factor < 1:
-        choices = ", ".join(f"{sizes[0][0] // f}x{sizes[0][1] // f}" for f in common_reductions(sizes)[1:5])
-        raise ValueError(f"--resolution {width}x{height}: the videos' frames ({sizes[0][0]}x{sizes[0][1]}) must be a whole "
-                         f"number of times as large on both sides (e.g. {choices})")
-    return int(factor)
+def reduction_for_resolution(size, resolution) -> int:
+    """The whole factor from a camera's ``size`` to ``resolution``, both (width, height): it
+    must divide both sides (``image.resolution_factors``'s error names sizes that do) and be the
+    same on both (the pixels stay square)."""
+    fx, fy = resolution_factors(tuple(size), tuple(int(v) for v in resolution))
+    if fx != fy:
+        raise ValueError(f"cannot track {size[0]}x{size[1]} videos at {resolution[0]}x{resolution[1]}: the width would be "
+                         f"averaged over {fx} pixels and the height over {fy}; keep the aspect (e.g. "
+                         f"{size[0] // fy}x{size[1] // fy} or {size[0] // fx}x{size[1] // fx} where it divides)")
+    return fx
 
 
 def choose_reduction(sizes, preview: int, person_height: float, person_pixels: int = PERSON_PIXELS) -> int:
@@ -151,7 +145,7 @@ def keypoint_boxes(keypoints, reduce: int, size, *, margin: float = 0.0) -> np.n
     width, height = size
     boxes = np.zeros((len(keypoints), height, width), bool)
     for c, points in enumerate(np.asarray(keypoints)):
-        seen = points[points[:, 2] > 0.3, :2]
+        seen = points[points[:, 2] > BOX_CONFIDENCE, :2]
         if len(seen) < 2:
             continue
         low, high = seen.min(axis=0), seen.max(axis=0)
@@ -238,7 +232,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             raise ValueError(f"resolution must be (width, height), 'auto' or None, got {resolution!r}")
         reduce, preview = None, preview_reduction(sizes)
     else:
-        reduce = preview = reduction_for_resolution(sizes, resolution)
+        reduce = preview = reduction_for_resolution(sizes[0], resolution)
     through_empty = bool(through_empty) and keypoints is not None
     if keypoints is not None:
         keypoints = np.asarray(keypoints)
@@ -255,11 +249,12 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     seconds["decode"] += time.perf_counter() - start
     source = (f"{pictures.shape[0]} frames of the empty scene per camera" if background is not None
               else f"the median of {pictures.shape[0]} frames spread over the videos")
-    person = None  # (t, C, h, w) where the keypoints say the person is, on the sampled frames of the videos
+    person = sampled_keypoints = None  # where the keypoints say the person is on the sampled frames of the videos
     if background is None and keypoints is not None:
-        person = np.stack([keypoint_boxes(keypoints[:, i], preview, (pictures.shape[-2], pictures.shape[-3]),
-                                          margin=PERSON_MARGIN) if i < keypoints.shape[1] else
-                           np.zeros(pictures.shape[1:-1], bool) for i in indices])
+        nobody = np.zeros(keypoints.shape[:1] + keypoints.shape[2:], keypoints.dtype)  # a frame past the keypoints' end
+        sampled_keypoints = [keypoints[:, i] if i < keypoints.shape[1] else nobody for i in indices]  # t of (C, K, 3)
+        size = (pictures.shape[-2], pictures.shape[-3])
+        person = np.stack([keypoint_boxes(k, preview, size, margin=PERSON_MARGIN) for k in sampled_keypoints])  # (t, C, h, w)
         source += ", each pixel's over the frames whose keypoints leave it free"
     start = time.perf_counter()
     model = jax.block_until_ready(fit_background(pictures, exclude=person))
@@ -283,16 +278,10 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             model = jax.block_until_ready(fit_background(pictures, exclude=person))
     seconds["background model"] += time.perf_counter() - start
     coverage = None
-    if keypoints is not None and background is None:  # do the silhouettes show the person the keypoints place?
-        masks = np.asarray(subtract_background(model, pictures).mask)
-        coverage = silhouette_coverage(masks, [keypoints[:, i] if i < keypoints.shape[1] else
-                                               np.zeros(keypoints.shape[:1] + keypoints.shape[2:]) for i in indices], reduce)
+    if sampled_keypoints is not None:  # do the silhouettes show the person the keypoints place?
+        coverage = silhouette_coverage(np.asarray(subtract_background(model, pictures).mask), sampled_keypoints, reduce)
     del pictures, person
     say(f"background model: {source}")
-    if reduce > 1:
-        rig_used = rig.resized(sizes[0][0] // reduce, sizes[0][1] // reduce)
-    else:
-        rig_used = rig
     masks, images, stopped = [], [], None
     empty_frames = np.zeros(rig.num_views, int)  # per camera, the frames read whose silhouette is empty
     start = time.perf_counter()
@@ -365,15 +354,13 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     if count == 0:
         raise VideoFileError(f"nothing to track: {stopped}")
     silhouettes = np.concatenate(masks, axis=1).view(np.uint8)  # bool and uint8 share a byte: no copy
-    kept = None if keypoints is None else np.asarray(keypoints[:, :count], np.float32)
-    moved = None
-    if kept is not None:  # into the tracking pixels (centres at integer coordinates, as the intrinsics)
-        moved = kept.copy()
-        moved[..., :2] = np.where(kept[..., 2:] > 0, (kept[..., :2] + 0.5) / reduce - 0.5, kept[..., :2])
-    sequence = Sequence.create(
-        fps=fps, camera_K=np.asarray(rig_used.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
+    source = Sequence.create(
+        fps=fps, camera_K=np.asarray(rig.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
         camera_t=np.asarray(rig.t, np.float64), camera_dist=np.asarray(rig.dist, np.float64),
-        image_size=np.asarray(rig_used.image_size, np.int64), camera_names=np.asarray(rig.names), silhouettes=silhouettes,
-        images=np.concatenate(images, axis=1) if keep_images else None, keypoints2d=moved)
-    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds, reduce=reduce, rig=rig,
-                      keypoints=kept, coverage=coverage, empty_frames=empty_frames)
+        image_size=np.asarray(rig.image_size, np.int64), camera_names=np.asarray(rig.names),
+        keypoints2d=None if keypoints is None else np.asarray(keypoints[:, :count], np.float32))
+    # the cameras and keypoints at the tracking resolution (Sequence.resized: pixel centres at integers)
+    sequence = source.resized(sizes[0][0] // reduce, sizes[0][1] // reduce).replace(
+        silhouettes=silhouettes, images=np.concatenate(images, axis=1) if keep_images else None)
+    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds, reduce=reduce, source=source,
+                      coverage=coverage, empty_frames=empty_frames)
