@@ -416,3 +416,20 @@ def test_the_tracking_resolution_is_chosen_from_the_person_size():
     assert choose_reduction(portrait, 4, 1500.0) == 8  # 187 px at 8, 94 at 16
     assert choose_reduction(portrait, 4, 4000.0) == 32
     assert choose_reduction([(1920, 1080)], 2, 900.0) == 6  # 150 px; 8 would leave 112
+
+
+def test_the_person_height_that_chooses_the_resolution_is_measured_on_the_videos(tmp_path):
+    """``resolution="auto"`` reads the person's height off the keypoints (their extent over 0.9),
+    else off the silhouettes of the videos' frames, also when the background model comes from an
+    empty-scene video (whose frames show nobody); a person under 120 px keeps the videos' size."""
+    rig = default_rig(64, 48, num_views=2)
+    folders, keypoints = _still_person_scene(tmp_path / "walk", free_frames=4)
+    rng = np.random.default_rng(3)
+    empty = np.clip(120 + rng.normal(0, 2, (2, 4, 48, 64, 3)), 0, 255).astype(np.uint8)
+    backgrounds = _png_folders(tmp_path / "empty", empty, ["C1", "C2"])
+    said = []
+    read = sequence_from_video(folders, rig, fps=30.0, background=backgrounds, resolution="auto", say=said.append)
+    assert read.reduce == 1 and any("the person is about 30 px tall (silhouettes)" in s for s in said), said
+    said = []
+    sequence_from_video(folders, rig, fps=30.0, keypoints=keypoints, resolution="auto", say=said.append)
+    assert any("the person is about 28 px tall (keypoints)" in s for s in said), said  # rows 12-37: 25 px / 0.9

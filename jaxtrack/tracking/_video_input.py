@@ -31,6 +31,7 @@ from ..io import MultiViewVideo, Sequence, VideoFileError, reduce_frames
 BACKGROUND_SAMPLES = 40  # frames spread over the video for its own background model
 PREVIEW_LONG_SIDE = 640  # the background samples' longer side before the tracking resolution is chosen (pixels)
 PERSON_PIXELS = 120  # the person's height at the resolution "auto" chooses (pixels)
+HEIGHT_FRAMES = 8  # the videos' first frames the person's height is measured on, given an empty-scene video
 PERSON_MARGIN = 0.15  # a keypoint box grows by this share of its height on every side to hold the whole body
 MIN_COVERAGE = 0.2  # the median share of a keypoint box the silhouettes must fill to be trusted
 BOX_CONFIDENCE = 0.3  # keypoints more confident than this bound the person's box (generous: a box left out is lost)
@@ -169,10 +170,11 @@ def silhouette_coverage(masks, keypoints, reduce: int) -> np.ndarray:
     return coverage
 
 
-def _person_height(model, pictures, keypoints, reduce: int) -> tuple[float, str]:
+def _person_height(model, frames, keypoints, reduce: int) -> tuple[float, str]:
     """The person's height in the videos' pixels, and what measured it: the keypoints' extent
     (over 0.9: the head joint is not the crown) on the first frames that show them, else the
-    silhouettes of the background samples ``pictures`` (t, C, h, w, 3) at ``reduce``."""
+    silhouettes of ``frames`` (t, C, h, w, 3), frames of the videos at ``reduce``, median over
+    the frames of the median over the views."""
     from ._pipeline import keypoint_height_pixels, person_height_pixels
 
     if keypoints is not None:
@@ -180,9 +182,8 @@ def _person_height(model, pictures, keypoints, reduce: int) -> tuple[float, str]
         heights = [h for h in heights if h > 0]
         if heights:
             return float(np.median(heights)) / 0.9, "keypoints"
-    masks = np.asarray(subtract_background(model, pictures).mask)  # (t, C, h, w)
-    heights = [person_height_pixels(frame) for frame in masks]
-    return float(np.median(heights)) * reduce, "silhouettes"
+    masks = np.asarray(subtract_background(model, frames).mask)  # (t, C, h, w)
+    return float(np.median([person_height_pixels(frame) for frame in masks])) * reduce, "silhouettes"
 
 
 def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
@@ -203,7 +204,8 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         resolution: None: the videos' own; (width, height): frames averaged down to it as they are
             decoded (a whole factor of the videos' size on both sides); ``"auto"``: the largest
             whole reduction at which the person is still ``PERSON_PIXELS`` tall, measured on the
-            keypoints, else on silhouettes of the background samples at ``PREVIEW_LONG_SIDE``.
+            keypoints, else on silhouettes of the background samples (of the first
+            ``HEIGHT_FRAMES`` frames, given an empty-scene video) at ``PREVIEW_LONG_SIDE``.
             The background model, the silhouettes and the pictures are made at that resolution:
             no full-resolution frame is held beyond the chunk being decoded.
         through_empty: with keypoints, an empty silhouette does not stop the reading (the
@@ -259,12 +261,17 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
     start = time.perf_counter()
     model = jax.block_until_ready(fit_background(pictures, exclude=person))
     if reduce is None:  # chosen from the person's size
-        height, measured = _person_height(model, pictures, keypoints, preview)
+        seen = pictures
+        if background is not None and keypoints is None:  # the empty scene's samples show nobody: the videos' first frames
+            with MultiViewVideo(videos, names=rig.names, frame_sizes=sizes, reduce=preview) as first:
+                seen = next(first.chunks(HEIGHT_FRAMES))[1].swapaxes(0, 1)  # (t, C, h, w, 3)
+        height, measured = _person_height(model, seen, keypoints, preview)
+        del seen
         reduce = choose_reduction(sizes, preview, height)
         width_, height_ = sizes[0][0] // reduce, sizes[0][1] // reduce
         if reduce == 1:
-            say(f"tracking at the videos' {width_}x{height_}: the person is about {height:.0f} px tall ({measured}), under "
-                f"{2 * PERSON_PIXELS} px (--resolution to choose)")
+            say(f"tracking at the videos' {width_}x{height_}: the person is about {height:.0f} px tall ({measured}); no whole "
+                f"reduction keeps {PERSON_PIXELS} px (--resolution to choose)")
         else:
             say(f"tracking at {width_}x{height_} (the videos' {sizes[0][0]}x{sizes[0][1]} averaged over {reduce}x{reduce} pixels): "
                 f"the person is about {height:.0f} px tall in the videos ({measured}), {height / reduce:.0f} px at that size "
