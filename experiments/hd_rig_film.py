@@ -3,8 +3,9 @@
 times: the renderer cannot film at 1088x1920 in 24 GB), a second person walking through C1 and C2
 (a flat-coloured figure composited over the first, so not occluded by depth), C2 and C3 written 8
 px narrower than the calibration says (an encoder's crop), no empty-scene video, and the
-detector's keypoints of the first person only, scaled to 1088x1920 (docs/video.md, "A portrait HD
-rig").
+detector's keypoints scaled to 1088x1920: of the first person only (``keypoints.npz``), and as
+OpenPose BODY_25B folders (``openpose/C1`` ...) with the second person's detections in C1 and C2,
+listed first and more confident (docs/video.md, "A portrait HD rig").
 
     jaxtrack scene walk.npz --rgb --video film_lo --frames 100 --width 272 --height 480 --views 4
     python experiments/hd_rig_film.py film --low film_lo --other other.npz --out film_hd
@@ -39,7 +40,8 @@ def _quarters(values) -> list[float]:
 def score(args) -> None:
     """The estimate's joint error against the truth and against a triangulation of the same
     keypoints, per quarter; and its reprojection error onto the keypoints beside the
-    triangulation's, per camera and quarter (median px over the joints each camera sees)."""
+    triangulation's and the truth's (the floor the detector's noise sets), per camera and quarter
+    (median px over the joints each camera sees)."""
     from jaxtrack.camera import project_points
     from jaxtrack.tracking import triangulate
 
@@ -59,13 +61,52 @@ def score(args) -> None:
     apart = 1000.0 * np.linalg.norm(estimate.joints3d - points, axis=-1).mean(axis=-1)
     print("triangulation against the truth, per quarter: " + " / ".join(f"{q:.0f}" for q in _quarters(gap[both])) + " mm; "
           "the estimate against the triangulation: " + " / ".join(f"{q:.0f}" for q in _quarters(apart[both])) + " mm")
-    for name, joints in (("estimate", estimate.joints3d), ("triangulation", points)):
+    for name, joints in (("estimate", estimate.joints3d), ("triangulation", points), ("the truth", truth.joints3d[:count])):
         pixels = np.moveaxis(np.asarray(project_points(rig, jnp.asarray(joints, jnp.float32))[0], np.float64), 2, 0)  # (C, T, 15, 2)
         off = np.linalg.norm(pixels - keypoints[..., :2], axis=-1)
         off = np.where(keypoints[..., 2] > 0, off, np.nan)
         per_camera = [[float(np.nanmedian(q)) for q in np.array_split(off[c], 4)] for c in range(len(rig.names))]
         print(f"{name} onto the keypoints, median px per quarter: "
               + "; ".join(f"{n} " + "/".join(f"{v:.0f}" for v in row) for n, row in zip(rig.names, per_camera)))
+
+
+# BODY_25B's points from the 15 HumanEva joints: the head's five at the head (so the reader tells
+# the layout from their spread), the upper neck between thorax and head, the feet undetected.
+_BODY25B_FROM = (("head",),) * 5 + tuple((n,) for n in ("lshoulder", "rshoulder", "lelbow", "relbow", "lwrist", "rwrist", "lhip",
+                                                         "rhip", "lknee", "rknee", "lankle", "rankle")) + (("thorax", "head"), ("head",))
+_BODY25B_FEET = 6
+
+
+def _body25b(joints) -> np.ndarray:
+    """(..., 15, 3) HumanEva keypoints -> (..., 25, 3) BODY_25B points (the feet at confidence 0)."""
+    from jaxtrack.body import HUMANEVA_JOINTS
+
+    out = np.zeros(joints.shape[:-2] + (len(_BODY25B_FROM) + _BODY25B_FEET, 3))
+    for k, names in enumerate(_BODY25B_FROM):
+        index = [HUMANEVA_JOINTS.index(n) for n in names]
+        confidence = joints[..., index, 2].min(axis=-1)
+        out[..., k, :2] = np.where(confidence[..., None] > 0, joints[..., index, :2].mean(axis=-2), 0.0)
+        out[..., k, 2] = confidence
+    return out
+
+
+def write_openpose(folder, keypoints, bystander, rig_hd, names) -> None:
+    """One OpenPose BODY_25B folder per camera, as OpenPose writes them: the tracked person's
+    detections, and in the second person's views that person's too, listed first and more
+    confident (the detector's 20 px noise at 1088x1920, 10 % dropped, confidence 0.95 against
+    0.9), so that each camera's most confident detection is the wrong person there."""
+    import json
+
+    from jaxtrack.data import DetectorNoise, detect_keypoints
+
+    other = detect_keypoints(jax.random.key(11), bystander, rig_hd, DetectorNoise(noise_px=5.0 * SCALE, confidence=0.95))
+    for c, name in enumerate(names):
+        os.makedirs(os.path.join(folder, name), exist_ok=True)
+        for t in range(keypoints.shape[1]):
+            people = ([other[c, t]] if c in SECOND_PERSON_VIEWS and other[c, t, :, 2].any() else []) + [keypoints[c, t]]
+            entries = [{"person_id": [-1], "pose_keypoints_2d": np.round(_body25b(p), 3).ravel().tolist()} for p in people]
+            with open(os.path.join(folder, name, f"{name}_{t:012d}_keypoints.json"), "w") as handle:
+                json.dump({"version": 1.3, "people": entries}, handle)
 
 
 def main() -> None:
@@ -111,6 +152,8 @@ def film(args) -> None:
     keypoints = keypoints.copy()  # pixel centres at integer coordinates, as the intrinsics
     keypoints[..., :2] = np.where(keypoints[..., 2:] > 0, (keypoints[..., :2] + 0.5) * SCALE - 0.5, keypoints[..., :2])
     save_keypoints(os.path.join(args.out, "keypoints.npz"), keypoints, camera_names)
+    bystander = np.asarray(other.joints3d) + np.array([1.6, 1.2, 0.0])  # as its pose was moved
+    write_openpose(os.path.join(args.out, "openpose"), keypoints, bystander, rig.resized(SCALE * width, SCALE * height), names)
     print(f"wrote {count} frames of {len(names)} {SCALE * width}x{SCALE * height} cameras into {args.out} "
           f"({', '.join(names[c] for c in CROPPED)} 8 px narrower; a second person in {', '.join(names[c] for c in SECOND_PERSON_VIEWS)})")
 

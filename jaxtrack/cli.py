@@ -171,7 +171,7 @@ def _fit(args) -> int:
     from .body import GLOBAL_DOFS
     from .io import check_output, load_sequence
     from .manifold import check_training_data, get_manifold_kind, save_model
-    from .tracking import fit_manifold
+    from .tracking import MOTION_KEY, fit_manifold, motion_record
 
     args.out = check_output(args.out, args.motion)
     if args.model == "spm-gplvm":
@@ -183,9 +183,10 @@ def _fit(args) -> int:
         if "num_inducing" not in kind.options:
             raise ValueError(f"--inducing is an option of sparse-gplvm and sparse-bc-gplvm, not of {kind.name}")
         options["num_inducing"] = args.inducing
-    poses, names, layouts = [], [], set()
+    poses, names, layouts, takes = [], [], set(), []
     for path in args.motion:
         seq = load_sequence(path)
+        takes.append(seq)
         if seq.pose is None:
             raise ValueError(f"{path}: has no 'pose' key (make one with 'jaxtrack convert')")
         layouts.add(tuple(str(n) for n in seq.pose_layout))
@@ -204,7 +205,8 @@ def _fit(args) -> int:
     fitted, info, starts = fit_manifold(poses, latent_dim, args.steps, kind=kind.name, progress=True,
                                         optimiser=args.optimiser, key=jax.random.key(args.seed), **options)
     kept_layout = list(next(iter(layouts)))[GLOBAL_DOFS:]
-    extra = {"pose_layout": kept_layout, "sequences": names}
+    extra = {"pose_layout": kept_layout, "sequences": names,
+             MOTION_KEY: motion_record(takes, names)}  # what track fits the dynamics on when no --validation is given
     if with_vlmm:
         from .dynamics import fit_vlmm_dynamics, vlmm_to_record
         from .manifold import make_manifold_prior
@@ -443,9 +445,9 @@ def _video_test(args):
     """``track --video``: the calibration, keypoints and videos read into a test sequence."""
     import numpy as np
 
-    from .io import read_calibration, read_keypoint_sources
+    from .io import MultiViewVideo, read_calibration, read_keypoint_people
     from .likelihood import DEFAULT_LIKELIHOOD, get_likelihood
-    from .tracking import sequence_from_video
+    from .tracking import associated_keypoints, sequence_from_video
 
     if args.test:
         raise ValueError(f"give a test sequence file ({args.test}) or --video, not both")
@@ -455,8 +457,16 @@ def _video_test(args):
     print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
     keypoints = None
     if args.keypoints:
-        keypoints = read_keypoint_sources(args.keypoints, args.keypoint_format, layout=args.keypoint_layout, camera_names=rig.names,
-                                          say=print)
+        keypoints, file_format = read_keypoint_people(args.keypoints, args.keypoint_format, layout=args.keypoint_layout,
+                                                      camera_names=rig.names, say=print)
+        if file_format != "npz":  # every person each detector found: one followed across the cameras
+            with MultiViewVideo(args.video) as video:
+                fps = args.fps or video.fps
+            if fps is None:
+                raise ValueError("image folders do not say their frame rate: give --fps")
+            keypoints = associated_keypoints(rig, keypoints, fps=fps, person=args.person, say=print)
+    elif args.person:
+        raise ValueError("--person chooses among the people the keypoints hold: it needs --keypoints")
     observes = get_likelihood(args.likelihood or DEFAULT_LIKELIHOOD).observes
     read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
                                keep_images=bool({"edges", "foreground", "images"} & set(observes)),
@@ -533,12 +543,12 @@ def _track(args) -> int:
     from .io import check_output, load_sequence, save_sequence
     from .likelihood import get_likelihood
     from .manifold import load_model
-    from .tracking import TrackingSpec, track_sequence
+    from .tracking import TrackingSpec, get_tracker, track_sequence
 
     spec = TrackingSpec(**_spec_fields(args))  # checked before any file is read
     spec.check_method(args.method)
-    inputs = [args.test, args.validation, args.model, *(args.video or []), *(args.background or []), *(args.calibration or []),
-              *(args.keypoints or [])]
+    inputs = [path for path in (args.test, args.validation, args.model) if path] + [
+        *(args.video or []), *(args.background or []), *(args.calibration or []), *(args.keypoints or [])]
     args.out = check_output(args.out, inputs, suffix=".npz")
     partial = args.out[: -len(".npz")] + ".partial.npz"
     check_output(partial, inputs)
@@ -548,8 +558,15 @@ def _track(args) -> int:
         args.overlay = check_output(args.overlay, inputs, suffix=".mp4")
     if args.video and not args.calibration:  # before any file is read
         raise ValueError("--video needs the cameras: --calibration FILE [FILE ...] (JSON, OpenCV YAML/XML or TOML)")
-    validation = load_sequence(args.validation)
-    model, header = load_model(args.model)
+    if args.model is None and get_tracker(args.method).needs_manifold:  # before any file is read
+        raise ValueError(f"--method {args.method} tracks on a manifold: give --model (a file from 'jaxtrack fit'); "
+                         "sir and apf need none")
+    validation = None if args.validation is None else load_sequence(args.validation)
+    model, header = load_model(args.model) if args.model else (None, None)
+    if validation is None and header is not None:
+        from .tracking import stored_motion
+
+        stored_motion(header, args.model)  # raises before the videos are read where the file stores none
     stopped = None
     if args.video:
         read = _video_test(args)
@@ -1017,17 +1034,22 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the detector's layout (default: told from the points per person, and BODY_25 from BODY_25B "
                             "from where points 0-4 lie)")
     track.add_argument("--frames", type=_at_least(1), help="with --video: track at most this many frames")
+    track.add_argument("--person", type=_at_least(0), default=0,
+                       help="with per-camera keypoint files (OpenPose, COCO) holding several people: which of the people "
+                            "found at the first frame to follow, as listed (default: %(default)s, the one most cameras see)")
     track.add_argument("--fps", type=float, help="with --video of image folders: their frame rate")
     track.add_argument("--start", choices=START_CHOICES,
                        help="truth: frame 0's ground truth; auto: found from the first frame's images by an annealed search "
                             "over the model's latent space (default: truth when the test file has it, else auto)")
     track.add_argument("--overlay", metavar="MP4", help="with --video: also write the estimate drawn over the videos")
-    track.add_argument("--model", required=True,
+    track.add_argument("--model",
                        help="a model file from 'jaxtrack fit': a GP manifold (gpdm, bc-gplvm, ...) for mrpf, mrpf-alg1, gpapf "
                             "and latentpf (on a GPDM the latent draw is its dynamics, on a BC-GPLVM 000 eq. 27's); a gle, tle "
-                            "or le for glegbpf")
-    track.add_argument("--validation", required=True,
-                       help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2)")
+                            "or le for glegbpf; sir and apf need none")
+    track.add_argument("--validation",
+                       help="validation sequence file: the tracker's dynamics are fitted on it (000 sec. 5.2); default: the "
+                            "model file's own training motion, or with no model file the embedded walk at the test's frame "
+                            "rate (docs/trackers.md)")
     track.add_argument("--method", choices=available_trackers(), default="mrpf", help=_methods_help())
     track.add_argument("--plugin", action="append", default=[], help="a module to import first; it may register trackers")
     track.add_argument("--seed", type=_seed, default=0)

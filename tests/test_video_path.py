@@ -362,6 +362,24 @@ def test_the_background_leaves_out_the_person_the_keypoints_place_and_a_still_pe
     assert read.untrusted_cameras() == ["C1", "C2"] and np.all(read.camera_coverage() < MIN_COVERAGE)
 
 
+def test_keypoints_shorter_than_the_videos_or_seeing_nobody_are_said_and_tracked_through(tmp_path):
+    """Keypoints of 9 frames for 12 frames of video: the last 3 read as missing (confidence 0),
+    with a warning; a frame where no camera's keypoints see anyone is counted and said; the
+    silhouettes of every frame are kept."""
+    rig = default_rig(64, 48, num_views=2)
+    folders, keypoints = _still_person_scene(tmp_path, free_frames=8)
+    short = keypoints[:, :9].copy()
+    short[:, 5, :, 2] = 0.0  # nobody in frame 5
+    said = []
+    read = sequence_from_video(folders, rig, fps=30.0, keypoints=short, say=said.append)
+    assert read.sequence.num_frames == 12 and read.stopped is None
+    kept = read.source.keypoints2d
+    np.testing.assert_array_equal(kept[:, :9], short)
+    assert kept.shape == (2, 12, 15, 3) and not kept[:, 9:, :, 2].any()
+    assert any("the keypoints hold 9 frames, the videos 12: frames 9-11 have no keypoints" in line for line in said)
+    assert any("see the person in 1 of 9 frames (from frame 5)" in line for line in said)
+
+
 @pytest.mark.xdist_group("colour_film")
 def test_frames_averaged_down_as_they_are_decoded(filmed, tmp_path):
     """``reduce``: image folders averaged in numpy, video files by ffmpeg's area scaler (in RGB),

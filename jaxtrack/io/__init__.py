@@ -40,8 +40,11 @@ from ._keypoints import head_spread as head_spread
 from ._keypoints import keypoint_format_of as keypoint_format_of
 from ._keypoints import load_keypoints as load_keypoints
 from ._keypoints import read_coco_keypoints as read_coco_keypoints
+from ._keypoints import read_coco_people as read_coco_people
+from ._keypoints import read_keypoint_people as read_keypoint_people
 from ._keypoints import read_keypoint_sources as read_keypoint_sources
 from ._keypoints import read_openpose_folder as read_openpose_folder
+from ._keypoints import read_openpose_people as read_openpose_people
 from ._keypoints import save_keypoints as save_keypoints
 from ._mocap import MotionCapture as MotionCapture
 from ._mocap import MotionFileError as MotionFileError

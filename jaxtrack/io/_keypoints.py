@@ -245,36 +245,41 @@ def _openpose_people(folder: str, count: int | None) -> list[np.ndarray]:
     return [np.zeros((0, count or 0, 3)) if f is None else f for f in frames]
 
 
-def _followed(frames: list[np.ndarray], layout: str | None, where: str, say) -> np.ndarray:
-    """(T, 15, 3) HumanEva joints of one person followed through a reader's frames (each
-    (P_t, K, 3), K the layout's when it was given), the layout told from them when not given
-    (``detect_layout``, said)."""
+def _humaneva_people(frames: list[np.ndarray], layout: str | None, where: str, say) -> list[np.ndarray]:
+    """Each frame's (P_t, 15, 3) HumanEva joints from a reader's frames (each (P_t, K, 3), K the
+    layout's when it was given), the layout told from them when not given (``detect_layout``,
+    said)."""
     if layout is None:
         layout, why = detect_layout(frames, where)
         if say is not None:
             say(f"{where}: keypoint layout {layout} ({why})")
     layout_ = get_keypoint_layout(layout)
-    frames = [f if f.shape[0] else np.zeros((0, layout_.num_points, 3)) for f in frames]
-    return layout_.to_humaneva(follow_person(frames))
+    return [layout_.to_humaneva(f if f.shape[0] else np.zeros((0, layout_.num_points, 3))) for f in frames]
+
+
+def read_openpose_people(folder: str | os.PathLike, layout: str | None = None, *, say=None) -> list[np.ndarray]:
+    """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
+    every person detected in each frame, (P_t, 15, 3) HumanEva joints in pixels with
+    confidences. ``layout`` None: told from the data (``detect_layout``; ``say`` is given the
+    choice and why). An empty person entry is a person not detected: left out."""
+    folder = os.fspath(folder)
+    frames = _openpose_people(folder, None if layout is None else get_keypoint_layout(layout).num_points)
+    return _humaneva_people(frames, layout, folder, say)
 
 
 def read_openpose_folder(folder: str | os.PathLike, layout: str | None = None, *, say=None) -> np.ndarray:
-    """One camera's OpenPose output (one ``*_keypoints.json`` per frame, sorted by name) ->
-    (T, 15, 3) HumanEva joints in pixels with confidences, following one person
-    (``follow_person``). ``layout`` None: told from the data (``detect_layout``; ``say`` is
-    given the choice and why). A frame with nobody, or only empty person entries, has every
-    joint missing (confidence 0)."""
-    folder = os.fspath(folder)
-    frames = _openpose_people(folder, None if layout is None else get_keypoint_layout(layout).num_points)
-    return _followed(frames, layout, folder, say)
+    """``read_openpose_people`` with one person followed through the frames (``follow_person``):
+    (T, 15, 3). A frame with nobody, or only empty person entries, has every joint missing
+    (confidence 0)."""
+    return follow_person(read_openpose_people(folder, layout, say=say))
 
 
-def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, images=None, say=None) -> np.ndarray:
+def read_coco_people(path: str | os.PathLike, layout: str | None = None, *, images=None, say=None) -> list[np.ndarray]:
     """A COCO keypoint JSON (a results list, or a dict with ``annotations`` and ``images``) of
-    one camera -> (T, 15, 3): frames are the image ids in ascending order (or ``images``, ids in
-    frame order), one person followed through them; a detection's ``score`` scales its points'
-    visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1). ``layout`` None: told from the data
-    (``detect_layout``)."""
+    one camera -> every person detected in each frame, (P_t, 15, 3): frames are the image ids in
+    ascending order (or ``images``, ids in frame order); a detection's ``score`` scales its
+    points' visibilities (COCO's v in {0, 1, 2} reads as 0, 0.5, 1). ``layout`` None: told
+    from the data (``detect_layout``)."""
     path = os.fspath(path)
     data = _read_json(path)
     annotations = data.get("annotations") if isinstance(data, dict) else data
@@ -294,7 +299,13 @@ def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, i
         by_image.setdefault(item["image_id"], []).append(points)
     order = list(images) if images is not None else sorted(by_image)
     frames = [np.stack(by_image[i]) if i in by_image else np.zeros((0, count or 0, 3)) for i in order]
-    return _followed(frames, layout, path, say)
+    return _humaneva_people(frames, layout, path, say)
+
+
+def read_coco_keypoints(path: str | os.PathLike, layout: str | None = None, *, images=None, say=None) -> np.ndarray:
+    """``read_coco_people`` with one person followed through the frames (``follow_person``):
+    (T, 15, 3)."""
+    return follow_person(read_coco_people(path, layout, images=images, say=say))
 
 
 def save_keypoints(path: str | os.PathLike, keypoints, camera_names) -> None:
@@ -361,14 +372,27 @@ def read_keypoint_sources(sources, file_format: str | None = None, *, layout: st
     """(C, T, 15, 3) HumanEva keypoints from a detector's files: one documented ``.npz`` holding
     every camera (``file_format="npz"``; its camera names must equal ``camera_names`` when
     given), or one source per camera in the cameras' order: an OpenPose folder of per-frame
-    JSON files (``"openpose"``) or a COCO keypoint JSON (``"coco"``). ``file_format`` None: told
-    from the sources (``keypoint_format_of``); ``layout`` None: told from the data
-    (``detect_layout``). ``say`` is given what was told and why.
+    JSON files (``"openpose"``) or a COCO keypoint JSON (``"coco"``), one person followed in
+    each (``follow_person``; ``tracking.associate_people`` follows one across the cameras).
+    ``file_format`` None: told from the sources (``keypoint_format_of``); ``layout`` None: told
+    from the data (``detect_layout``). ``say`` is given what was told and why.
 
     Raises:
         ValueError: on an unknown format, a count of sources that does not match the cameras,
             or cameras whose sources hold different numbers of frames.
     """
+    people, file_format = read_keypoint_people(sources, file_format, layout=layout, camera_names=camera_names, say=say)
+    if file_format == "npz":
+        return people
+    return np.stack([follow_person(frames) for frames in people])
+
+
+def read_keypoint_people(sources, file_format: str | None = None, *, layout: str | None = None, camera_names=None,
+                         say=None):
+    """Every person each camera's detector found: ``(people, file_format)``, ``people`` a list
+    per camera of (P_t, 15, 3) arrays per frame for OpenPose folders and COCO files, the
+    (C, T, 15, 3) array itself for an ``.npz`` (one person). Arguments and errors as
+    ``read_keypoint_sources``'s."""
     sources = [os.fspath(s) for s in sources]
     if file_format is None:
         file_format = keypoint_format_of(sources)
@@ -383,13 +407,13 @@ def read_keypoint_sources(sources, file_format: str | None = None, *, layout: st
         keypoints, found = load_keypoints(sources[0])
         if names is not None and list(found) != names:
             raise ValueError(f"{sources[0]}: keypoints of cameras {list(found)}, but the cameras are {names}")
-        return keypoints
+        return keypoints, file_format
     if names is not None and len(sources) != len(names):
         raise ValueError(f"{len(names)} cameras: give one {file_format} keypoint source per camera, in their order "
                          f"(got {len(sources)})")
-    read = read_openpose_folder if file_format == "openpose" else read_coco_keypoints
+    read = read_openpose_people if file_format == "openpose" else read_coco_people
     per_view = [read(source, layout, say=say) for source in sources]
     if len({len(k) for k in per_view}) != 1:
         raise ValueError("the cameras' keypoint sources hold different numbers of frames: "
                          + ", ".join(f"{s} {len(k)}" for s, k in zip(sources, per_view)))
-    return np.stack(per_view)
+    return per_view, file_format

@@ -8,8 +8,19 @@ module: the filter it composes (``sir_filter``, ``apf_filter``, ``gpapf_filter``
 
 from ._apf import apf_filter as apf_filter
 from ._apf import make_apf as make_apf
+from ._association import Association as Association
+from ._association import Person as Person
+from ._association import associate_people as associate_people
+from ._association import associated_keypoints as associated_keypoints
+from ._association import describe_people as describe_people
+from ._association import find_people as find_people
 from ._builtin import BUILTIN_RECIPES as BUILTIN_RECIPES
 from ._builtin import PAPER_TRACKERS as PAPER_TRACKERS
+from ._dynamics_motion import DEFAULT_MOTION as DEFAULT_MOTION
+from ._dynamics_motion import MOTION_KEY as MOTION_KEY
+from ._dynamics_motion import dynamics_motion as dynamics_motion
+from ._dynamics_motion import motion_record as motion_record
+from ._dynamics_motion import stored_motion as stored_motion
 from ._gpapf import gpapf_filter as gpapf_filter
 from ._gpapf import make_gpapf as make_gpapf
 from ._latentpf import latent_pf_filter as latent_pf_filter
@@ -67,6 +78,7 @@ from ._sir import make_sir as make_sir
 from ._sir import sir_filter as sir_filter
 from ._spec import TrackingSpec as TrackingSpec
 from ._start import START_CHOICES as START_CHOICES
+from ._start import PoseSamples as PoseSamples
 from ._start import StartSearch as StartSearch
 from ._start import automatic_start as automatic_start
 from ._start import mask_centroids as mask_centroids

@@ -67,12 +67,13 @@ from ..likelihood import (
     fit_radii as fit_capsule_radii,
 )
 from ..manifold import DEFAULT_OPTIMISER, SpectralEmbedding, get_manifold_kind, to_prior
+from ._dynamics_motion import dynamics_motion
 from ._limb_measurement import LimbMeasurement, measure_limb_lengths
 from ._off_manifold import OFF_MANIFOLD_START_MM, start_off_manifold_mm
 from ._refine_body import refine_frame_count, spread_frames, track_and_refine_body
 from ._registry import FADING_START, Budget, MotionData, TrackerRecipe
 from ._spec import TrackingSpec
-from ._start import START_CHOICES, StartSearch, automatic_start
+from ._start import START_CHOICES, PoseSamples, StartSearch, automatic_start
 from ._subject import (
     CALIBRATION_PRIORS,
     OWN_BODY_SOURCES,
@@ -826,15 +827,16 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
         raise ValueError(f"the model has {model.data_dim} pose entries, {name} has {len(expected)} joint angles")
 
 
-def track_sequence(sequence: Sequence, model, header: dict, method: str, validation: Sequence, spec: TrackingSpec | None = None, *,
+def track_sequence(sequence: Sequence, model, header: dict | None, method: str, validation=None, spec: TrackingSpec | None = None, *,
                    seed: int = 0, name: str = "test", chunk_frames: int | None = None, on_chunk=None, say=print):
     """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence,
     tracked as ``spec`` says (default ``TrackingSpec()``: its budget, likelihood, body, ground
     prior, velocity and residual; the manifold settings are the model file's). The validation
-    sequence fits the tracker's dynamics and the ground prior's clearance, and lends its body to
-    a test file of the same ``subject`` that has neither skeleton nor joints. ``chunk_frames``
-    and ``on_chunk`` as for ``track`` (the estimates so far after each chunk); ``say`` is told
-    what was chosen.
+    motion (a ``Sequence`` or a list of them) fits the tracker's dynamics and the ground
+    prior's clearance, and lends its body to a test file of the same ``subject`` that has
+    neither skeleton nor joints; None: the model file's own training motion, else (SIR, APF with
+    ``model`` None) the embedded walk (``dynamics_motion``). ``chunk_frames`` and ``on_chunk``
+    as for ``track`` (the estimates so far after each chunk); ``say`` is told what was chosen.
 
     Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
 
@@ -849,29 +851,40 @@ def track_sequence(sequence: Sequence, model, header: dict, method: str, validat
     if spec.residual and recipe.residual is None:
         raise ValueError(f"{recipe.label} takes no pose residual: its state holds the pose itself (or its estimate is "
                          f"projected onto the manifold); the trackers that take one decode their pose from a latent point")
-    spectral = isinstance(model, SpectralEmbedding)
-    if recipe.needs_manifold and spectral != (recipe.family == "spectral"):
-        raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.runs_on)} manifold, and the model file holds a "
-                         f"{type(model).__name__}{f' ({model.graph})' if spectral else ''}")
-    check_model_layout(model, header, sequence, name)
-    check_frame_rates([sequence, validation], [name, "the validation sequence"])
+    if model is None:
+        if recipe.needs_manifold:
+            raise ValueError(f"{recipe.label} tracks on a manifold: give a model file from 'jaxtrack fit' (--model); "
+                             "sir and apf need none")
+    else:
+        spectral = isinstance(model, SpectralEmbedding)
+        if recipe.needs_manifold and spectral != (recipe.family == "spectral"):
+            raise ValueError(f"{recipe.label} runs on a {' or '.join(recipe.runs_on)} manifold, and the model file holds a "
+                             f"{type(model).__name__}{f' ({model.graph})' if spectral else ''}")
+        check_model_layout(model, header, sequence, name)
+    header = {} if model is None else dict(header or {})
     key = jax.random.key(seed)
-    validation_subject = subject_body(validation, "the validation sequence", key=key)
-    if validation_subject.poses is None:
+    motions, motion_source = dynamics_motion(validation, header if model is not None else None, fps=sequence.fps, key=key)
+    motion_names = ["the validation sequence" if validation is not None else "the dynamics' motion"] * len(motions)
+    check_frame_rates([sequence, *motions], [name, *motion_names])
+    subjects = [subject_body(m, n, key=key) for m, n in zip(motions, motion_names)]
+    if any(s.poses is None for s in subjects):
         raise ValueError("the validation sequence needs 'pose' or 'joints3d' to fit the tracker's dynamics on")
-    layout = [str(n) for n in validation_subject.body.skeleton.pose_layout]
-    root_height = float(np.mean(validation_subject.poses[:, layout.index("root_z")]))
-    validation_poses = validation_subject.poses
-    clearance = motion_clearance([validation], [validation_poses], skeletons=[validation_subject.body.skeleton])
-    scene = prepare_test(sequence, name, key=key, donors=[("the validation sequence", validation_subject, validation.subject)], say=say,
-                         start=spec.start, start_model=model, root_height=root_height,
-                         root_height_legs=leg_length(validation_subject.body), ground_clearance=clearance, **spec.scene_options())
+    say(f"{name}: dynamics fitted on {motion_source}")
+    layout = [str(n) for n in subjects[0].body.skeleton.pose_layout]
+    motion_poses = [s.poses for s in subjects]
+    root_height = float(np.mean(np.concatenate([p[:, layout.index("root_z")] for p in motion_poses])))
+    clearance = motion_clearance(motions, motion_poses, skeletons=[s.body.skeleton for s in subjects])
+    donors = [(n, s, m.subject) for n, s, m in zip(motion_names, subjects, motions)]
+    start_model = model if model is not None else PoseSamples(jnp.asarray(np.concatenate(motion_poses)[:, GLOBAL_DOFS:]))
+    scene = prepare_test(sequence, name, key=key, donors=donors, say=say,
+                         start=spec.start, start_model=start_model, root_height=root_height,
+                         root_height_legs=leg_length(subjects[0].body), ground_clearance=clearance, **spec.scene_options())
     say(f"{name}: body {scene.body_source}"
         + ("" if np.isnan(scene.start_error_mm) else f"; the start pose is {scene.start_error_mm:.1f} mm from frame 0's ground truth"))
     starts = header.get("sequence_starts")
     if spec.ground_prior:
         scene = add_ground_prior(scene, clearance)
-    motion = motion_data([], [validation_poses], model, None if starts is None else tuple(starts), stored=header.get("extra"))
+    motion = motion_data([], motion_poses, model, None if starts is None else tuple(starts), stored=header.get("extra"))
     fit_key, run_root = tracker_keys(seed, method)
     fitted = fit_tracker(recipe, fit_key, motion)
 

@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._custom_types import Array
 from .._tree import cast_floating
 from ..body import GLOBAL_DOFS, HUMANEVA_JOINTS, Skeleton, forward_kinematics
 from ..camera import CameraRig
@@ -157,6 +158,25 @@ def root_guess(rig: CameraRig, skeleton: Skeleton, *, silhouettes=None, keypoint
         if seen:
             return point[:2], None, "silhouette centroids"
     raise ValueError("the automatic start cannot place the person: fewer than two cameras see them in the first frame")
+
+
+class PoseSamples(eqx.Module):
+    """What the automatic start searches when the tracker has no manifold (SIR or APF with no
+    model file): the motion's (N, A) joint angles stand for latent points and decode to
+    themselves (``training_latent`` and ``predictor`` as a manifold's)."""
+
+    angles: Array
+
+    def training_latent(self):
+        return self.angles
+
+    def predictor(self):
+        return _Identity()
+
+
+class _Identity(eqx.Module):
+    def __call__(self, x):
+        return x, jnp.zeros(x.shape[:-1], x.dtype)
 
 
 def automatic_start(key, likelihood, observations, model, rig: CameraRig, skeleton: Skeleton, *, root_height: float,

@@ -186,6 +186,24 @@ def _person_height(model, frames, keypoints, reduce: int) -> tuple[float, str]:
     return float(np.median([person_height_pixels(frame) for frame in masks])) * reduce, "silhouettes"
 
 
+def _keypoints_for(keypoints, frames: int, say) -> np.ndarray:
+    """(C, ``frames``, 15, 3) keypoints: those given, with missing frames (confidence 0) after
+    their end where they hold fewer than the videos, said with the frames where no camera sees
+    anyone (the filter goes through them on what else it has)."""
+    held = keypoints.shape[1]
+    if held < frames:
+        say(f"warning: the keypoints hold {held} frames, the videos {frames}: frames {held}-{frames - 1} have no keypoints "
+            "(check that the detector ran on every frame)")
+        keypoints = np.concatenate([keypoints, np.zeros((keypoints.shape[0], frames - held) + keypoints.shape[2:],
+                                                        keypoints.dtype)], axis=1)
+    keypoints = keypoints[:, :frames]
+    nobody = np.flatnonzero(~(keypoints[..., 2] > 0).any(axis=(0, 2))[:held])
+    if nobody.size:
+        say(f"warning: no camera's keypoints see the person in {nobody.size} of {min(held, frames)} frames (from frame "
+            f"{nobody[0]}): those frames are tracked through on the silhouettes, or on the dynamics alone")
+    return keypoints
+
+
 def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
                         frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
                         through_empty: bool = False, say=None) -> VideoInput:
@@ -198,7 +216,8 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
             ``frame_sizes``: cropped or padded at the right and bottom edges, with a warning).
         fps: the frame rate when the sources do not say (image folders); else the videos'.
         background: one video or folder of the empty scene per camera, or None.
-        keypoints: (C, T', 15, 3) detections (``io.read_keypoint_sources``), T' >= the frames read.
+        keypoints: (C, T', 15, 3) detections (``io.read_keypoint_sources``); where T' is under the
+            frames read, the frames after them have none (said).
         frames: read at most this many frames.
         keep_images: keep the pictures as the sequence's ``images``.
         resolution: None: the videos' own; (width, height): frames averaged down to it as they are
@@ -300,9 +319,7 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         total = video.num_frames
         wanted = total if frames is None else min(int(frames), total)
         if keypoints is not None:
-            if keypoints.shape[1] < wanted:
-                raise ValueError(f"keypoints of {keypoints.shape[0]} cameras x {keypoints.shape[1]} frames, but the videos have "
-                                 f"{rig.num_views} cameras x {wanted} frames")
+            keypoints = _keypoints_for(keypoints, wanted, say)
         fps = float(fps if fps is not None else (video.fps or 0.0))
         if not fps > 0:
             raise ValueError("the sources do not say their frame rate (image folders): give it (--fps)")
