@@ -10,9 +10,14 @@ half of the frames, tracked as a second chunk of the same compiled scan, on late
 is its jitted evaluation of ``budget`` poses on one frame, times the frames.
 
     taskset -c 0,1 python benchmarks/bench_video_path.py --json video_path.json
+    taskset -c 0,1 python benchmarks/bench_video_path.py --size 1088x1920 --cameras 4 --json video_path_hd.json
     python benchmarks/bench_video_path.py --folder DIR   # a folder from `jaxtrack scene --rgb --video`
 
-Without ``--folder`` a synthetic walk (subject S1) is filmed first into a temporary folder.
+Without ``--folder`` a synthetic walk (subject S1) is filmed first into a temporary folder. A
+size whose longer side is over ``FILMED_LONG_SIDE`` is filmed at a whole reduction of it and
+upscaled (the renderer cannot film 4 cameras of 1088x1920 in 24 GB), as a camera's own videos
+of that size: the path then averages them down to its tracking resolution as it decodes
+(``resolution="auto"``), and the decoding alone is timed the same way, as the floor.
 """
 
 from __future__ import annotations
@@ -24,13 +29,39 @@ import time
 
 from bench_output import add_output_arguments, median_seconds, pin_threads, write_json
 
+FILMED_LONG_SIDE = 640  # pixels: larger sizes are filmed at a reduction and upscaled
+
+
+def _size(text: str) -> tuple[int, int]:
+    width, height = (int(v) for v in text.lower().split("x"))
+    return width, height
+
+
+def _upscaled(folder: str, names, factor: int) -> None:
+    """Every video of a filmed folder (and its background videos) repeated ``factor`` x
+    ``factor`` times per pixel, in place, with the calibration scaled to match."""
+    import numpy as np
+
+    from jaxtrack.io import MultiViewVideo, VideoWriter, read_calibration, save_calibration
+
+    for path in [os.path.join(folder, f"{n}.mp4") for n in names] + [os.path.join(folder, "background", f"{n}.mp4") for n in names]:
+        with MultiViewVideo([path]) as video:
+            fps, blocks = video.fps, [block for _, block in video.chunks(16)]
+        with VideoWriter([path + ".big.mp4"], fps) as writer:
+            for block in blocks:
+                writer.write(np.repeat(np.repeat(block, factor, axis=2), factor, axis=3))
+        os.replace(path + ".big.mp4", path)
+    calibration = os.path.join(folder, "calibration.json")
+    rig = read_calibration([calibration], dtype=np.float64)
+    width, height = (int(v) for v in rig.image_size[0])
+    save_calibration(calibration, rig.resized(factor * width, factor * height))
+
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--folder", help="a filmed scene (default: film a synthetic walk)")
-    parser.add_argument("--views", type=int, default=3)
-    parser.add_argument("--width", type=int, default=320)
-    parser.add_argument("--height", type=int, default=240)
+    parser.add_argument("--cameras", type=int, default=3)
+    parser.add_argument("--size", type=_size, default=(320, 240), help="WIDTHxHEIGHT of each camera (default 320x240)")
     parser.add_argument("--frames", type=int, default=96)
     parser.add_argument("--budget", type=int, default=500)
     parser.add_argument("--method", default="mrpf")
@@ -54,9 +85,14 @@ def main():
     folder = args.folder
     if folder is None:
         folder = tempfile.mkdtemp(prefix="jaxtrack_video_")
-        rig = default_rig(args.width, args.height, num_views=args.views)
+        width, height = args.size
+        factor = next(f for f in range(1, max(width, height) + 1)
+                      if width % f == 0 and height % f == 0 and max(width, height) // f <= FILMED_LONG_SIDE)
+        rig = default_rig(width // factor, height // factor, num_views=args.cameras)
         scene = scene_from_sequence(jax.random.key(1), walk, rig, NO_NOISE, frames=args.frames)
         write_rgb_scene(folder, jax.random.key(1), scene, background_frames=30)
+        if factor > 1:
+            _upscaled(folder, rig.names, factor)
     rig = read_calibration([os.path.join(folder, "calibration.json")], dtype=np.float64)
     videos = [os.path.join(folder, f"{n}.mp4") for n in rig.names]
     backgrounds = [os.path.join(folder, "background", f"{n}.mp4") for n in rig.names]
@@ -64,7 +100,8 @@ def main():
 
     def report(stage, seconds, frames, first=None):
         row = {"stage": stage, "seconds": seconds, "frames": frames, "fps": frames / seconds,
-               "views": rig.num_views, "width": int(rig.image_size[0][0]), "height": int(rig.image_size[0][1]), "budget": args.budget}
+               "views": rig.num_views, "width": int(rig.image_size[0][0]), "height": int(rig.image_size[0][1]), "budget": args.budget,
+               "tracking_reduction": reduce}
         if first is not None:
             row["first_seconds"] = first
         rows.append(row)
@@ -72,31 +109,36 @@ def main():
               + ("" if first is None else f"   (first pass, compile included: {first:.1f} s)"))
         write_json(rows, args.json)
 
-    def decode():
-        with MultiViewVideo(videos) as video:
-            return sum(block.shape[1] for _, block in video.chunks(32))
+    start = time.perf_counter()
+    reduce = sequence_from_video(videos, rig, background=backgrounds, resolution="auto", say=print).reduce
+    first_read = time.perf_counter() - start
 
-    start = time.perf_counter()
-    frames = decode()
-    first = time.perf_counter() - start
-    report("decode", median_seconds(decode, 3), frames, first)
-    start = time.perf_counter()
-    sequence_from_video(videos, rig, background=backgrounds)
-    first = time.perf_counter() - start
-    with MultiViewVideo(videos) as video:
+    def decode() -> tuple[int, float]:
+        """Frames decoded as the path decodes them (averaged down to the tracking resolution by
+        ffmpeg), and the seconds it took, opening the videos apart (once per video)."""
+        with MultiViewVideo(videos, reduce=reduce) as video:
+            start = time.perf_counter()
+            count = sum(block.shape[1] for _, block in video.chunks(32))
+            return count, time.perf_counter() - start
+
+    frames, first = decode()
+    report("decode (the floor)", float(np.median([decode()[1] for _ in range(3)])), frames, first)
+    first = first_read
+    with MultiViewVideo(videos, reduce=reduce) as video:
         blocks = [np.moveaxis(block, 1, 0) for _, block in video.chunks(32)]
 
     def subtract():
         for block in blocks:
             jax.block_until_ready(subtract_background(background_model, block).mask)
 
-    with MultiViewVideo(backgrounds) as empty:
+    with MultiViewVideo(backgrounds, reduce=reduce) as empty:
         background_model = fit_background(np.concatenate([c for _, c in empty.chunks(32)], axis=1).swapaxes(0, 1))
     report("background subtraction", median_seconds(subtract, 3), frames, first)
     # what a user waits for per frame: decoded and subtracted chunk by chunk, each chunk's subtraction
     # running while the next decodes; apart, what a video costs once: the background model and
     # opening and closing the videos (ffmpeg counting each video's packets, starting, stopping)
-    read = sorted((sequence_from_video(videos, rig, background=backgrounds) for _ in range(3)), key=lambda r: r.seconds["silhouettes"])[1]
+    read = sorted((sequence_from_video(videos, rig, background=backgrounds, resolution="auto") for _ in range(3)),
+                  key=lambda r: r.seconds["silhouettes"])[1]
     report("silhouettes (decode and subtraction side by side)", read.seconds["silhouettes"], frames)
     once = read.seconds["background model"] + read.seconds["open and close"]
     for stage in ("background model", "open and close"):

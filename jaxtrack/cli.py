@@ -445,42 +445,50 @@ def _video_test(args):
     """``track --video``: the calibration, keypoints and videos read into a test sequence."""
     import numpy as np
 
-    from .io import MultiViewVideo, read_calibration, read_keypoint_people
+    from .io import MultiViewVideo, VideoFileError, read_calibration, read_keypoint_people
     from .likelihood import DEFAULT_LIKELIHOOD, get_likelihood
-    from .tracking import associated_keypoints, sequence_from_video
+    from .tracking import associated_keypoints, open_video
 
     if args.test:
         raise ValueError(f"give a test sequence file ({args.test}) or --video, not both")
     if not args.calibration:
         raise ValueError("--video needs the cameras: --calibration FILE [FILE ...] (JSON, OpenCV YAML/XML or TOML)")
-    rig = read_calibration(args.calibration, units=args.units, up=args.up, dtype=np.float64)
+    with MultiViewVideo(args.video) as video:  # each video's size, for a calibration that gives none
+        sizes = video.sizes
+    rig = read_calibration(args.calibration, units=args.units, up=args.up, dtype=np.float64, image_sizes=sizes, say=print)
     print(f"cameras from {', '.join(args.calibration)}: {', '.join(rig.names)}")
     keypoints = None
     if args.keypoints:
         keypoints, file_format = read_keypoint_people(args.keypoints, args.keypoint_format, layout=args.keypoint_layout,
                                                       camera_names=rig.names, say=print)
         if file_format != "npz":  # every person each detector found: one followed across the cameras
-            with MultiViewVideo(args.video) as video:
-                fps = args.fps or video.fps
+            fps = args.fps or video.fps
             if fps is None:
                 raise ValueError("image folders do not say their frame rate: give --fps")
             keypoints = associated_keypoints(rig, keypoints, fps=fps, person=args.person, say=print)
     elif args.person:
         raise ValueError("--person chooses among the people the keypoints hold: it needs --keypoints")
     observes = get_likelihood(args.likelihood or DEFAULT_LIKELIHOOD).observes
-    read = sequence_from_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
-                               keep_images=bool({"edges", "foreground", "images"} & set(observes)),
-                               resolution=args.resolution or "auto", say=print,
-                               through_empty=args.likelihood is None)  # the keypoints alone then carry empty frames
-    print(f"silhouettes of {read.sequence.num_frames} frames by background subtraction in {read.seconds['silhouettes']:.1f} s, "
-          f"decoding side by side (its model {read.seconds['background model']:.1f} s, opening and closing the videos "
+    stream = open_video(args.video, rig, fps=args.fps, background=args.background, keypoints=keypoints, frames=args.frames,
+                        keep_images=bool({"edges", "foreground", "images"} & set(observes)),
+                        resolution=args.resolution or "auto", say=print,
+                        through_empty=args.likelihood is None)  # the keypoints alone then carry empty frames
+    try:
+        first = stream.read(args.chunk_frames or stream.wanted)  # a segment at a time: the memory of one segment
+        if first is None:
+            raise VideoFileError(f"nothing to track: {stream.stopped}")
+    except BaseException:
+        stream.close()
+        raise
+    read = stream.input(first)
+    segments = "" if first.num_frames >= stream.wanted else f" (the first {first.num_frames} of {stream.wanted}: --chunk-frames at a time)"
+    print(f"silhouettes of {first.num_frames} frames{segments} by background subtraction in {read.seconds['silhouettes']:.1f} s, "
+          f"decoding side by side (its model {read.seconds['background model']:.1f} s, opening the videos "
           f"{read.seconds['open and close']:.1f} s)")
-    if read.stopped:
-        print(f"warning: the videos' frames from {read.sequence.num_frames} on are not tracked: {read.stopped}", file=sys.stderr)
     if read.coverage is not None:
         print("silhouettes against the keypoints (the share of each camera's keypoint box they fill, median over the "
               "background samples): " + ", ".join(f"{n} {c:.2f}" for n, c in zip(rig.names, read.camera_coverage())))
-    return read
+    return stream, read
 
 
 def _video_likelihood(args, read) -> str | None:
@@ -567,10 +575,10 @@ def _track(args) -> int:
         from .tracking import stored_motion
 
         stored_motion(header, args.model)  # raises before the videos are read where the file stores none
-    stopped = None
+    stream = None
     if args.video:
-        read = _video_test(args)
-        sequence, stopped = read.sequence, read.stopped  # at the tracking resolution, which the spec then leaves as it is
+        stream, read = _video_test(args)
+        sequence = read.sequence  # the first segment, at the tracking resolution, which the spec then leaves as it is
         spec = dataclasses.replace(spec, resolution=None)
         chosen = _video_likelihood(args, read)
         if chosen is not None:
@@ -586,7 +594,8 @@ def _track(args) -> int:
         raise ValueError("give a test sequence file, or the videos (--video ... --calibration ...)")
     has_truth = sequence.joints3d is not None or sequence.pose is not None
     spec = dataclasses.replace(spec, start=args.start or ("truth" if has_truth else "auto"))
-    kept = read.source if args.video else sequence  # the estimate file: the calibration's cameras
+    kept = stream.source if args.video else sequence  # the estimate file: the calibration's cameras
+    total = stream.wanted if args.video else sequence.num_frames
 
     def save_so_far(poses, joints):  # a valid sequence of the frames tracked so far, replaced after each chunk
         done = len(poses)
@@ -594,18 +603,28 @@ def _track(args) -> int:
         # estimates are then the partial file's only frames
         so_far = kept.cropped(done) if kept.num_frames else kept
         save_sequence(partial, _estimate_sequence(so_far, poses, joints))
-        print(f"  {done}/{sequence.num_frames} frames tracked; estimates so far in {partial}", flush=True)
+        print(f"  {done}/{total} frames tracked; estimates so far in {partial}", flush=True)
         stop_here()
 
-    chunked = args.chunk_frames and args.chunk_frames < sequence.num_frames
-    with _interrupt_between_chunks() if chunked else contextlib.nullcontext(lambda: None) as stop_here:
-        poses, joints, info = track_sequence(
-            sequence, model, header, args.method, validation, spec, seed=args.seed, name=name,
-            chunk_frames=args.chunk_frames if chunked else None, on_chunk=save_so_far if chunked else None,
-        )
+    chunked = args.chunk_frames and args.chunk_frames < total
+    with contextlib.ExitStack() as held:
+        if stream is not None:
+            held.enter_context(stream)
+        stop_here = held.enter_context(_interrupt_between_chunks() if chunked else contextlib.nullcontext(lambda: None))
+        if args.video:
+            poses, joints, info = _track_video(stream, sequence, model, header, validation, spec, args, name,
+                                               save_so_far if chunked else None)
+        else:
+            poses, joints, info = track_sequence(
+                sequence, model, header, args.method, validation, spec, seed=args.seed, name=name,
+                chunk_frames=args.chunk_frames if chunked else None, on_chunk=save_so_far if chunked else None,
+            )
+    stopped = stream.stopped if stream is not None else None
+    if stopped:
+        print(f"warning: the videos' frames from {len(poses)} on are not tracked: {stopped}", file=sys.stderr)
     if sequence.joints3d is not None:
         print(f"{args.method}: error {float(mean_joint_error_mm(joints, sequence.joints3d)):.1f} mm (000 eq. 31) over {len(poses)} frames")
-    save_sequence(args.out, _estimate_sequence(kept, poses, joints))
+    save_sequence(args.out, _estimate_sequence(kept.cropped(len(poses)) if kept.num_frames > len(poses) else kept, poses, joints))
     if os.path.exists(partial):
         os.remove(partial)
     degenerate = float(np.mean(np.asarray(info.degenerate)))
@@ -627,6 +646,31 @@ def _track(args) -> int:
         print(f"jaxtrack track: error: tracked {len(poses)} frames and stopped: {stopped}", file=sys.stderr)
         return 4
     return 0
+
+
+def _track_video(stream, first, model, header, validation, spec, args, name, on_chunk):
+    """``track --video``: the tracker prepared on the videos' first segment (``first``), then run
+    on over the rest, read and tracked a segment of ``--chunk-frames`` frames at a time, so that
+    one segment's silhouettes are held at a time (``tracking.track_stream``)."""
+    import jax
+
+    from .likelihood import get_likelihood
+    from .tracking import PIXEL_SAMPLE_TAG, prepare_tracking, segment_observations, track_stream
+
+    prepared = prepare_tracking(first, model, header, args.method, validation, spec, seed=args.seed, name=name)
+    reads_silhouettes = "silhouettes" in get_likelihood(spec.likelihood).observes
+    sample_key = jax.random.fold_in(jax.random.key(args.seed), PIXEL_SAMPLE_TAG)
+
+    def further():
+        k = 0
+        while (segment := stream.read(args.chunk_frames or stream.wanted)) is not None:
+            k += 1
+            if not reads_silhouettes:
+                segment = segment.replace(silhouettes=None)
+            yield segment_observations(prepared.scene, segment, spec.likelihood, spec.likelihood_options,
+                                       key=jax.random.fold_in(sample_key, k), name=name)
+
+    return track_stream(prepared, further(), on_chunk=on_chunk)
 
 
 def _estimate_sequence(sequence, poses, joints):

@@ -82,6 +82,15 @@ def test_anipose_toml_in_millimetres_and_a_y_up_world(reference, tmp_path):
     path.write_text("\n".join(lines).replace("size = [ 640.0, 480.0,]", "width = 640", 1))
     with pytest.raises(CalibrationFileError, match=r"\[cam_0\] size: missing \(looked for 'size', 'width' and 'height'"):
         read_calibration(path)
+    # no size at all: taken from the videos where they are given, and said
+    sizeless = "\n".join(lines).replace("size = [ 640.0, 480.0,]", "")
+    path.write_text(sizeless)
+    said = []
+    filled = read_calibration(path, image_sizes=[(640, 480)] * rig.num_views, say=said.append)
+    np.testing.assert_array_equal(np.asarray(filled.image_size), np.asarray(rig.image_size))
+    assert said[0] == "calibration: camera 'left' gives no image size: 640x480, its video's" and len(said) == rig.num_views
+    with pytest.raises(CalibrationFileError, match=r"size: missing .*track --video takes it from the videos"):
+        read_calibration(path)
 
 
 def test_opencv_yaml_and_xml_one_file_per_camera(reference, tmp_path):

@@ -293,6 +293,37 @@ def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys, monke
 
     overlay = frames_of(tmp_path / "est.mp4")
     assert overlay.shape == (1, 8, 72, 3 * 96, 3)
+    # COCO files per camera with a bystander, more confident, in C1 and C2 (40 px to the right and
+    # 30 px down: a second person): associated across the cameras, the walker is followed.
+    import json
+
+    from jaxtrack.body import HUMANEVA_JOINTS
+
+    detections = np.asarray(np.load(film / "keypoints.npz")["keypoints"], np.float64)  # (3, 8, 15, 3)
+    coco = ["head"] * 5 + ["lshoulder", "rshoulder", "lelbow", "relbow", "lwrist", "rwrist", "lhip", "rhip", "lknee", "rknee",
+                           "lankle", "rankle"]
+    order = [HUMANEVA_JOINTS.index(n) for n in coco]
+    files = []
+    for c, name in enumerate(names):
+        results = []
+        for t in range(8):
+            person = detections[c, t][order]
+            if c < 2:
+                other = person + np.where(person[:, 2:] > 0, [40.0, 30.0, 0.0], 0.0)
+                results.append({"image_id": t, "keypoints": other.ravel().tolist(), "score": 1.0})
+            results.append({"image_id": t, "keypoints": person.ravel().tolist(), "score": 0.8})
+        files.append(tmp_path / f"{name}.json")
+        files[-1].write_text(json.dumps(results))
+    keyed = [*args]
+    keyed[keyed.index("--keypoints") + 1] = str(files[0])
+    keyed[keyed.index("--keypoints") + 2:keyed.index("--keypoints") + 2] = [str(f) for f in files[1:]]
+    assert main([*keyed, "--out", str(tmp_path / "coco")]) == 0
+    out = capsys.readouterr().out
+    assert "person 0 (followed): seen by C1, C2, C3" in out and "followed through 8 of 8 frames" in out
+    followed = load_sequence(tmp_path / "coco.npz").keypoints2d[:, :, 2:]  # the joints COCO marks (not pelvis, thorax)
+    seen = followed[..., 2] > 0
+    assert seen.mean() > 0.8
+    np.testing.assert_allclose(followed[..., :2][seen], detections[:, :, 2:, :2][seen], atol=1e-3)
     # Camera C2 sees nobody from frame 5: frames 0-4 tracked and written, exit status 4.
     with VideoWriter([tmp_path / "C2_cut.mp4"], 30.0) as writer:
         frames = frames_of(videos[1])
@@ -360,6 +391,23 @@ def test_the_background_leaves_out_the_person_the_keypoints_place_and_a_still_pe
     still, keypoints = _still_person_scene(tmp_path / "still", free_frames=0)
     read = sequence_from_video(still, rig, fps=30.0, keypoints=keypoints, through_empty=True)
     assert read.untrusted_cameras() == ["C1", "C2"] and np.all(read.camera_coverage() < MIN_COVERAGE)
+
+
+def test_a_video_read_in_segments_is_the_video_read_at_once(tmp_path):
+    """``VideoStream.read`` a few frames at a time (segments that end inside a decoded chunk)
+    gives the silhouettes and keypoints of one read, frame for frame, then None."""
+    from jaxtrack.tracking import open_video
+
+    rig = default_rig(64, 48, num_views=2)
+    folders, keypoints = _still_person_scene(tmp_path, free_frames=8)
+    whole = sequence_from_video(folders, rig, fps=30.0, keypoints=keypoints).sequence
+    with open_video(folders, rig, fps=30.0, keypoints=keypoints, chunk=4) as stream:
+        segments = [stream.read(5), stream.read(5), stream.read(5)]
+        assert stream.read(5) is None and stream.frames_read == 12 and stream.stopped is None
+    assert [s.num_frames for s in segments] == [5, 5, 2]
+    np.testing.assert_array_equal(np.concatenate([s.silhouettes for s in segments], axis=1), whole.silhouettes)
+    np.testing.assert_array_equal(np.concatenate([s.keypoints2d for s in segments], axis=1), whole.keypoints2d)
+    np.testing.assert_array_equal(segments[1].camera_K, whole.camera_K)  # at the tracking resolution, as the whole
 
 
 def test_keypoints_shorter_than_the_videos_or_seeing_nobody_are_said_and_tracked_through(tmp_path):
@@ -451,3 +499,45 @@ def test_the_person_height_that_chooses_the_resolution_is_measured_on_the_videos
     said = []
     sequence_from_video(folders, rig, fps=30.0, keypoints=keypoints, resolution="auto", say=said.append)
     assert any("the person is about 28 px tall (keypoints)" in s for s in said), said  # rows 12-37: 25 px / 0.9
+
+
+@pytest.mark.slow  # a 320x240 film looped to 150 and 1200 frames, tracked twice in subprocesses: about 2 minutes on 2 cores
+def test_a_long_video_is_tracked_in_the_memory_of_one_segment(tmp_path):
+    """``track --video`` reads and tracks a segment of ``--chunk-frames`` frames at a time: the
+    peak resident memory of 1200 frames is that of 150 (the silhouettes and pixel samples of
+    1200 frames of two 320x240 cameras alone would hold over 250 MB more)."""
+    import subprocess
+    import sys
+
+    from jaxtrack.cli import main
+    from jaxtrack.data import motion_sequence
+    from jaxtrack.io import MultiViewVideo, save_sequence
+
+    motion = generate_motion("walk", "S1", num_frames=30, fps=30.0, key=jax.random.key(0))
+    walk = tmp_path / "walk.npz"
+    save_sequence(walk, motion_sequence(motion))
+    film = tmp_path / "film"
+    assert main(["scene", str(walk), "--rgb", "--video", str(film), "--frames", "30", "--width", "320", "--height", "240",
+                 "--views", "2", "--background-frames", "4"]) == 0
+    assert main(["fit", str(walk), "--out", str(tmp_path / "m.eqx"), "--steps", "5"]) == 0
+    names = ["C1", "C2"]
+    with MultiViewVideo([film / f"{n}.mp4" for n in names]) as video:
+        clip = np.concatenate([block for _, block in video.chunks(30)], axis=1)  # (2, 30, 240, 320, 3)
+    peaks = {}
+    for frames in (150, 1200):
+        looped = [tmp_path / f"{n}_{frames}.mp4" for n in names]
+        with VideoWriter(looped, 30.0) as writer:
+            for piece in range(frames // 30):  # there and back: no jump where the loop closes
+                writer.write(clip if piece % 2 == 0 else clip[:, ::-1])
+        argv = ["track", "--video", *map(str, looped), "--background", *[str(film / "background" / f"{n}.mp4") for n in names],
+                "--calibration", str(film / "calibration.json"), "--model", str(tmp_path / "m.eqx"), "--method", "sir",
+                "--budget", "32", "--body", "default", "--chunk-frames", "50", "--out", str(tmp_path / f"est_{frames}")]
+        code = (f"import resource, sys; from jaxtrack.cli import main; rc = main({argv!r}); "
+                "print('PEAK', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(rc)")
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1500)
+        assert done.returncode == 0, done.stderr[-2000:]
+        peaks[frames] = int(done.stdout.rsplit("PEAK", 1)[1]) / 1024  # MB
+    from jaxtrack.io import load_sequence
+
+    assert load_sequence(tmp_path / "est_1200.npz").num_frames == 1200
+    assert peaks[1200] - peaks[150] < 100, peaks  # one pass holds over 250 MB more

@@ -27,6 +27,7 @@ from ._resampling import multinomial as multinomial
 from ._resampling import residual as residual
 from ._resampling import stratified as stratified
 from ._resampling import systematic as systematic
+from ._run import continue_filter as continue_filter
 from ._run import particle_sharding as particle_sharding
 from ._run import run_filter as run_filter
 from ._sir import SIR as SIR

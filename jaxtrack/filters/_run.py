@@ -113,6 +113,32 @@ def run_filter(
         if particles is not None and particles % shards:
             raise ValueError(f"{particles} particles cannot be split evenly over {shards} devices; use a multiple of {shards}")
     state, keys = _init(filter_, key, initial_pose, num_frames, sharding)
+    return _run_chunks(filter_, state, keys, observations, num_frames, chunk_frames, on_chunk, sharding)
+
+
+def continue_filter(filter_: AbstractFilter, key: PRNGKeyArray, state: FilterState, observations: Any, *,
+                    sharding: jax.sharding.Sharding | None = None) -> tuple[FilterState, StepInfo]:
+    """Run a filter on from a state (``run_filter``'s final state) over further frames, in one
+    jitted ``lax.scan``: frame t of them uses the t-th of ``split(key)``'s per-frame keys. A
+    stream tracked a segment at a time carries the particles and their weights across.
+    ``run_filter(f, key, pose, obs)`` is ``continue_filter(f, k_step, f.init(k_init, pose), obs)``
+    with ``k_init, k_step = split(key)``.
+
+    Raises:
+        TypeError: if ``filter_`` is not an ``AbstractFilter``.
+        ValueError: on observations with no frames.
+    """
+    if not isinstance(filter_, AbstractFilter):
+        raise TypeError(f"continue_filter needs an AbstractFilter, got {type(filter_).__name__}")
+    check_key(key)
+    leaves = jax.tree.leaves(observations)
+    if not leaves or np.shape(leaves[0])[:1] in ((), (0,)):
+        raise ValueError("observations must have a leading frame axis with at least one frame")
+    num_frames = int(np.shape(leaves[0])[0])
+    return _scan(filter_, _constrain(state, sharding), jax.random.split(key, num_frames), observations, sharding)
+
+
+def _run_chunks(filter_, state, keys, observations, num_frames: int, chunk_frames, on_chunk, sharding):
     chunk = num_frames if chunk_frames is None else chunk_frames
     pieces = []
     for start in range(0, num_frames, chunk):

@@ -30,6 +30,7 @@ directions agree on, as cameras are mounted upright). A missing or malformed ent
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -97,6 +98,8 @@ def _camera(path, name, matrix, distortion, rotation, translation, size) -> dict
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-4) or np.linalg.det(R) < 0:
         raise CalibrationFileError(path, f"camera {name!r} rotation: not a rotation matrix")
     t = _array(path, f"camera {name!r} translation", translation, (3,))
+    if isinstance(size, _Missing):
+        return {"name": str(name), "K": K, "dist": dist, "R": R, "t": t, "size": size}
     size = _array(path, f"camera {name!r} size", size, (2,))
     if np.any(size < 1) or np.any(size != np.round(size)):
         raise CalibrationFileError(path, f"camera {name!r} size: must be (width, height) in whole pixels, got {size.tolist()}")
@@ -123,7 +126,15 @@ def _size(path, table: dict, keys, what: str):
         if width in table and height in table:
             return [table[width], table[height]]
     looked = ", ".join([*map(repr, keys), *(f"{w!r} and {h!r}" for w, h in _SIZE_PAIRS)])
-    raise CalibrationFileError(path, f"{what}: missing (looked for {looked})")
+    return _Missing(f"{what}: missing (looked for {looked})")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Missing:
+    """An image size the file does not give: what was looked for (``read_calibration`` takes it
+    from ``image_sizes``, or raises this)."""
+
+    why: str
 
 
 def _read_json(path) -> tuple[list[dict], str | None, str | None]:
@@ -255,7 +266,9 @@ def _read_opencv(path) -> dict:
     if "image_width" in entries or "image_height" in entries:
         size = [_required(path, entries, ("image_width",), "image_width"), _required(path, entries, ("image_height",), "image_height")]
     else:
-        size = _required(path, entries, ("image_size", "imageSize", "size"), "image size (image_width and image_height)")
+        keys = ("image_size", "imageSize", "size")
+        size = next((entries[k] for k in keys if k in entries),
+                    _Missing("image size: missing (looked for 'image_width' and 'image_height', " + ", ".join(map(repr, keys)) + ")"))
     return _camera(path, name, _required(path, entries, ("camera_matrix", "cameraMatrix", "K", "intrinsics"), "camera_matrix"),
                    next((entries[k] for k in ("distortion_coefficients", "distCoeffs", "dist", "D") if k in entries), None),
                    _required(path, entries, ("R", "rotation", "rvec", "rvecs", "Rot"), "rotation (R or rvec)"),
@@ -281,10 +294,12 @@ def _detect_up(cameras) -> str:
     return ("-" if mean[axis] < 0 else "") + "xyz"[axis]
 
 
-def read_calibration(paths, *, units: str | None = None, up: str | None = None, dtype=None):
+def read_calibration(paths, *, units: str | None = None, up: str | None = None, dtype=None, image_sizes=None, say=None):
     """Read a calibration (one JSON or TOML file of every camera, or one OpenCV YAML/XML file
     per camera, in order) into a ``CameraRig`` in jaxtrack's world: Z up, metres (module
     docstring; ``units`` and ``up`` None: read from a JSON file's fields or told from the cameras).
+    ``image_sizes``: (width, height) per camera, in order (e.g. its video's), for the cameras
+    whose file gives no image size; ``say`` is told which took it.
 
     Raises:
         FileNotFoundError: a file that does not exist.
@@ -312,6 +327,15 @@ def read_calibration(paths, *, units: str | None = None, up: str | None = None, 
     else:
         raise CalibrationFileError(", ".join(paths), "unknown calibration format (.json, .toml, or OpenCV .yaml / .yml / .xml)")
     where = paths[0] if len(paths) == 1 else ", ".join(paths)
+    for i, camera in enumerate(cameras):
+        if isinstance(camera["size"], _Missing):
+            if image_sizes is None or i >= len(image_sizes):
+                raise CalibrationFileError(paths[min(i, len(paths) - 1)], f"{camera['size'].why}; give the image size in the file "
+                                           "(track --video takes it from the videos)")
+            camera["size"] = np.asarray([int(v) for v in image_sizes[i]], np.int64)
+            if say is not None:
+                say(f"calibration: camera {camera['name']!r} gives no image size: {camera['size'][0]}x{camera['size'][1]}, "
+                    "its video's")
     units = units or file_units
     if units is None:
         centres = np.stack([-cam["R"].T @ cam["t"] for cam in cameras])

@@ -361,7 +361,7 @@ class MultiViewVideo:
         wanted = set(indices.tolist())
         picked = []
         for first, frames in self.chunks(32):
-            picked += [frames[:, i] for i in range(frames.shape[1]) if first + i in wanted]
+            picked += [frames[:, i].copy() for i in range(frames.shape[1]) if first + i in wanted]  # not views of the chunk
         return indices, np.stack(picked)
 
 

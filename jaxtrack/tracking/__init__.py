@@ -33,8 +33,10 @@ from ._off_manifold import OFF_MANIFOLD_START_MM as OFF_MANIFOLD_START_MM
 from ._off_manifold import start_off_manifold_mm as start_off_manifold_mm
 from ._pipeline import CALIBRATION_CLEARANCE as CALIBRATION_CLEARANCE
 from ._pipeline import CALIBRATION_FRAMES as CALIBRATION_FRAMES
+from ._pipeline import PIXEL_SAMPLE_TAG as PIXEL_SAMPLE_TAG
 from ._pipeline import RADII_FRAMES as RADII_FRAMES
 from ._pipeline import TRACKING_DTYPE as TRACKING_DTYPE
+from ._pipeline import PreparedTracking as PreparedTracking
 from ._pipeline import TestScene as TestScene
 from ._pipeline import add_ground_prior as add_ground_prior
 from ._pipeline import build_for_start as build_for_start
@@ -51,11 +53,14 @@ from ._pipeline import method_problems as method_problems
 from ._pipeline import motion_clearance as motion_clearance
 from ._pipeline import motion_data as motion_data
 from ._pipeline import prepare_test as prepare_test
+from ._pipeline import prepare_tracking as prepare_tracking
+from ._pipeline import segment_observations as segment_observations
 from ._pipeline import sequence_poses as sequence_poses
 from ._pipeline import track as track
 from ._pipeline import track_runs as track_runs
 from ._pipeline import track_sequence as track_sequence
 from ._pipeline import track_sequences as track_sequences
+from ._pipeline import track_stream as track_stream
 from ._pipeline import tracker_keys as tracker_keys
 from ._pipeline import tracker_stream as tracker_stream
 from ._refine_body import REFINE_FRAMES as REFINE_FRAMES
@@ -97,9 +102,11 @@ from ._subject import subject_body as subject_body
 from ._video_input import MIN_COVERAGE as MIN_COVERAGE
 from ._video_input import PERSON_PIXELS as PERSON_PIXELS
 from ._video_input import VideoInput as VideoInput
+from ._video_input import VideoStream as VideoStream
 from ._video_input import choose_reduction as choose_reduction
 from ._video_input import common_reductions as common_reductions
 from ._video_input import keypoint_boxes as keypoint_boxes
+from ._video_input import open_video as open_video
 from ._video_input import preview_reduction as preview_reduction
 from ._video_input import sequence_from_video as sequence_from_video
 from ._video_input import silhouette_coverage as silhouette_coverage

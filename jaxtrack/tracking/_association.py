@@ -9,15 +9,15 @@ triangulation reprojects onto them:
 
 - **The people at one frame** (``find_people``). Every pair of detections in two cameras is
   triangulated (``triangulate``: the confident joints, least squares on their rays) and kept
-  where both reproject within ``CONSISTENT`` of the person's size. The error is the median
-  over the joints, in each camera's pixels over the detection's size there, so the bound is
-  the same at any resolution. Each other camera adds its detection that reprojects best, where
+  where both reproject within ``CONSISTENT`` of the person's size plus ``DETECTOR_PX`` (the
+  error is the median over the joints, in each camera's pixels: the bound scales with the
+  person, as a detector's error mostly does, above a detector's pixel floor). Each other camera adds its detection that reprojects best, where
   it is within the bound, and the joints are triangulated again. The people are taken
   greedily: most cameras first, then the smallest error, no detection used twice.
 - **Through time** (``associate_people``). The person chosen at the first frame where anyone
   is seen by two cameras (``person``: 0, the one seen by most cameras; the list is said) is
   followed: in each later frame, of that frame's people, the one whose joints lie nearest the
-  person's last ones (the median distance over the joints both hold), within the distance a
+  person's last ones (their centroid over the joints both hold), within the distance a
   person can cover since last seen (``MAX_SPEED``, plus ``REACH_SLACK``). Where nobody is that
   near, or no two cameras agree, the person is missing in that frame (confidence 0): one camera
   alone cannot say whom it sees, and two cameras that disagree with the others may see two
@@ -36,7 +36,8 @@ import numpy as np
 from ..camera import CameraRig
 from ._start import triangulate
 
-CONSISTENT = 0.1  # median reprojection error over the detection's size (a tenth of a person)
+CONSISTENT = 0.1  # the bound on the median reprojection error: a tenth of the detection's size ...
+DETECTOR_PX = 8.0  # ... plus a detector's pixel error, which does not shrink with the person (pixels)
 MIN_JOINTS = 5  # confident joints two cameras must share to be triangulated together
 MAX_SPEED = 3.0  # m/s: how far the person's joints may go between the frames they are seen in (a jog)
 REACH_SLACK = 0.3  # metres, added to that distance (the triangulation's own error, a limb's swing)
@@ -50,7 +51,8 @@ class Person:
         detections: per camera, the index of the person's detection in that camera's frame, or
             None where the camera does not see them.
         joints: (15, 3) triangulated joints, metres (NaN where fewer than two cameras see one).
-        error: the worst camera's median reprojection error over the detection's size.
+        error: the worst camera's median reprojection error, in units where ``CONSISTENT`` is
+            the bound (pixels over the detection's size plus ``DETECTOR_PX / CONSISTENT``).
     """
 
     detections: tuple[int | None, ...]
@@ -84,9 +86,15 @@ def detection_size(detection) -> float:
     return float(max(np.ptp(points[:, 0]), np.ptp(points[:, 1]), 1.0))
 
 
+def _error_scale(detection) -> float:
+    """Pixels per unit of the association's error: an error of ``CONSISTENT`` is a tenth of the
+    detection's size plus ``DETECTOR_PX``."""
+    return detection_size(detection) + DETECTOR_PX / CONSISTENT
+
+
 def _errors(rig: CameraRig, joints, chosen) -> np.ndarray:
     """(C,) per camera with a detection in ``chosen`` ((C, 15, 3) or None rows), the median
-    reprojection error of ``joints`` (15, 3) over the detection's size (inf where none is shared)."""
+    reprojection error of ``joints`` (15, 3) over ``_error_scale`` (inf where none is shared)."""
     pixels = _project(rig, joints)
     out = np.full(len(chosen), np.inf)
     for c, detection in enumerate(chosen):
@@ -95,7 +103,7 @@ def _errors(rig: CameraRig, joints, chosen) -> np.ndarray:
         shared = (detection[:, 2] > 0) & np.all(np.isfinite(pixels[c]), axis=-1)
         if shared.sum():
             off = np.linalg.norm(pixels[c][shared] - detection[shared, :2], axis=-1)
-            out[c] = float(np.median(off)) / detection_size(detection)
+            out[c] = float(np.median(off)) / _error_scale(detection)
     return out
 
 
@@ -131,7 +139,7 @@ def _grown(rig: CameraRig, frame, person: Person) -> Person:
         for i, detection in enumerate(detections):
             shared = (detection[:, 2] > 0) & np.all(np.isfinite(pixels[c]), axis=-1)
             if shared.sum() >= MIN_JOINTS:
-                error = float(np.median(np.linalg.norm(pixels[c][shared] - detection[shared, :2], axis=-1))) / detection_size(detection)
+                error = float(np.median(np.linalg.norm(pixels[c][shared] - detection[shared, :2], axis=-1))) / _error_scale(detection)
                 if error <= best_error:
                     best, best_error = i, error
         indices[c] = best
@@ -170,10 +178,11 @@ def find_people(rig: CameraRig, frame) -> list[Person]:
 
 
 def joint_distance(joints, other) -> float:
-    """The median distance (metres) between two (15, 3) triangulations over the joints both hold
-    (inf where they share none)."""
+    """How far apart two (15, 3) triangulations are (metres): the distance between the
+    centroids of the joints both hold (a mean over the joints: a detector's noise on each
+    averages out, and a joint one of them lacks does not move it), inf where they share none."""
     both = np.all(np.isfinite(joints), axis=-1) & np.all(np.isfinite(other), axis=-1)
-    return float(np.median(np.linalg.norm(joints[both] - other[both], axis=-1))) if both.any() else np.inf
+    return float(np.linalg.norm(np.mean(joints[both] - other[both], axis=0))) if both.any() else np.inf
 
 
 @dataclasses.dataclass(frozen=True)
@@ -252,8 +261,8 @@ def describe_people(association: Association, camera_names) -> list[str]:
         cameras = ", ".join(str(n) for n, d in zip(camera_names, person.detections) if d is not None)
         x, y, _ = person.centre()
         mark = " (followed)" if k == association.chosen else ""
-        lines.append(f"person {k}{mark}: seen by {cameras}, at x {x:.2f} m, y {y:.2f} m; reprojection "
-                     f"{100 * person.error:.0f} % of their size")
+        lines.append(f"person {k}{mark}: seen by {cameras}, at x {x:.2f} m, y {y:.2f} m; reprojection error "
+                     f"{100 * person.error / CONSISTENT:.0f} % of the bound")
     return lines
 
 

@@ -9,6 +9,7 @@ float32; estimates come back as float64 NumPy arrays for the metrics.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import sys
 import time
 import zlib
@@ -36,7 +37,7 @@ from ..body import (
 from ..camera import check_in_view
 from ..dynamics import AbstractDynamics, GaitRate, VelocityFit, fit_pose_residual, fit_state_velocity
 from ..errors import ConfigurationError
-from ..filters import AbstractComposedFilter, LangevinRefinement, run_filter
+from ..filters import AbstractComposedFilter, LangevinRefinement, continue_filter, run_filter
 from ..io import Sequence, check_keypoints
 from ..likelihood import (
     DEFAULT_LIKELIHOOD,
@@ -393,9 +394,9 @@ def _samples_pixels(likelihood) -> bool:
 def _on_sampled_pixels(likelihood, observations, key, samples: int):
     """The likelihood and observations with the silhouettes scored on ``samples`` stratified
     pixels per view and frame (``_samples_pixels`` must hold)."""
+    sampled = _sampled(observations, key, samples)
     if isinstance(likelihood, SilhouetteLikelihood):
-        return SampledSilhouetteLikelihood.from_dense(likelihood), sample_frames(key, observations, samples=samples)
-    sampled = {**observations, "silhouettes": sample_frames(key, observations["silhouettes"], samples=samples)}
+        return SampledSilhouetteLikelihood.from_dense(likelihood), sampled
     if _is_silhouette_part(likelihood):
         return ObservationPart(SampledSilhouetteLikelihood.from_dense(likelihood.term), likelihood.key), sampled
     terms = tuple(ObservationPart(SampledSilhouetteLikelihood.from_dense(t.term), t.key) if _is_silhouette_part(t) else t
@@ -416,6 +417,58 @@ def _pixel_samples(requested, likelihood, likelihood_name, width, height, name, 
         raise ValueError(f"--pixel-samples {requested}: the {likelihood_name} likelihood ({type(likelihood).__name__}) "
                          "does not score sampled pixels; pixel sampling applies to the silhouette likelihood")
     return requested or None
+
+
+def _checked_cues(sequence: Sequence, rig, frames: int, name: str):
+    """The first ``frames`` frames' silhouettes and keypoints (C, T, ...), checked (None where absent)."""
+    observed = (None if sequence.silhouettes is None
+                else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames])
+    keypoints = None if sequence.keypoints2d is None else check_keypoints(sequence.keypoints2d, rig.num_views,
+                                                                            where=f"{name} keypoints2d")[:, :frames]
+    return observed, keypoints
+
+
+def _cues(recipe, sequence: Sequence, observed, keypoints, frames: int, likelihood_options) -> dict:
+    """Every cue a likelihood may read, (C, T, ...) each (None where it reads none): the
+    silhouettes, the keypoints, 001's edge and foreground maps (from the images' edges where the
+    sequence has images), the images in [0, 1]."""
+    edges = foreground = None
+    if {"edges", "foreground"} & set(recipe.observes):
+        images = None if sequence.images is None else sequence.images[:, :frames]
+        chosen = {**recipe.options, **dict(likelihood_options or {})}
+        edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(
+            images, observed, colour=bool(chosen.get("edge_colour", False)), near=int(chosen.get("edges_near", 0))))
+        edges, foreground = np.asarray(edges), np.asarray(foreground)
+    images = np.asarray(sequence.images[:, :frames], np.float32) / 255.0 if "images" in recipe.observes else None
+    return {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground, "images": images}
+
+
+def _per_frame(recipe, cues: dict):
+    """The observations the likelihood reads, frame axis first: (T, C, ...) of its one cue, or a
+    dict of them."""
+    per_frame = {kind: np.moveaxis(cues[kind], 1, 0) for kind in recipe.observes}
+    return per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
+
+
+def _sampled(observations, key, samples: int):
+    """The observations with their silhouettes on ``samples`` stratified pixels per view and frame."""
+    if isinstance(observations, dict):
+        return {**observations, "silhouettes": sample_frames(key, observations["silhouettes"], samples=samples)}
+    return sample_frames(key, observations, samples=samples)
+
+
+def segment_observations(scene: TestScene, sequence: Sequence, likelihood: str, likelihood_options=None, *, key: PRNGKeyArray,
+                         name: str = "test"):
+    """The observations of another segment of a stream whose first segment made ``scene``
+    (``prepare_test`` with the likelihood named ``likelihood``): the same cues, on pixels sampled
+    with ``key`` where the scene's are (``scene.pixel_samples``), ready for
+    ``filters.continue_filter``."""
+    recipe = get_likelihood(likelihood)
+    rig = sequence.rig(dtype=TRACKING_DTYPE)
+    observed, keypoints = _checked_cues(sequence, rig, sequence.num_frames, name)
+    observations = jax.tree.map(jnp.asarray, _per_frame(recipe, _cues(recipe, sequence, observed, keypoints, sequence.num_frames,
+                                                                       likelihood_options)))
+    return observations if scene.pixel_samples is None else _sampled(observations, key, scene.pixel_samples)
 
 
 def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: int | None = None, likelihood_scale: float = 100.0,
@@ -499,10 +552,7 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
         raise ValueError(f"{name}: a test sequence needs ground truth ('joints3d' or 'pose') to start from and be scored; "
                          "without it, start automatically (start='auto', 'jaxtrack track --start auto')")
     body_model = resolved.body
-    observed = (None if sequence.silhouettes is None
-                else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames])
-    keypoints = None if sequence.keypoints2d is None else check_keypoints(sequence.keypoints2d, rig.num_views,
-                                                                            where=f"{name} keypoints2d")[:, :frames]
+    observed, keypoints = _checked_cues(sequence, rig, frames, name)
     truth_poses = truth = None
     if resolved.poses is not None:
         truth_poses = resolved.poses[:frames]
@@ -510,24 +560,13 @@ def prepare_test(sequence: Sequence, name: str, *, key: PRNGKeyArray, frames: in
     if start == "truth":
         check_in_view(rig, forward_kinematics(body_model.skeleton, jnp.asarray(truth_poses[0], TRACKING_DTYPE)),
                       f"{name}'s initial pose (frame 0)")
-    edges = foreground = None
-    if {"edges", "foreground"} & set(recipe.observes):  # 001's maps, from the images' edges where the file has images
-        images = None if sequence.images is None else sequence.images[:, :frames]
-        chosen = {**recipe.options, **dict(likelihood_options or {})}
-        edges, foreground = (maps_from_silhouettes(observed) if images is None else maps_from_images(
-            images, observed, colour=bool(chosen.get("edge_colour", False)), near=int(chosen.get("edges_near", 0))))
-        edges, foreground = np.asarray(edges), np.asarray(foreground)
-    images = None
-    if "images" in recipe.observes:
-        images = np.asarray(sequence.images[:, :frames], np.float32) / 255.0
+    cues = _cues(recipe, sequence, observed, keypoints, frames, likelihood_options)
     likelihood = recipe.make(SceneInputs(body=body_model, rig=rig, silhouettes=observed, scale=likelihood_scale, window=window,
-                                         keypoints=keypoints, edges=edges, foreground=foreground, images=images),
+                                         keypoints=keypoints, edges=cues["edges"], foreground=cues["foreground"],
+                                         images=cues["images"]),
                              **dict(likelihood_options or {}))
     pixel_samples = _pixel_samples(pixel_samples, likelihood, recipe.name, width, image_height, name, say)
-    per_frame = {"silhouettes": observed, "keypoints": keypoints, "edges": edges, "foreground": foreground,
-                 "images": images}  # (C, T, ...) -> (T, C, ...)
-    per_frame = {kind: np.moveaxis(per_frame[kind], 1, 0) for kind in recipe.observes}
-    observations = per_frame[recipe.observes[0]] if len(recipe.observes) == 1 else per_frame
+    observations = _per_frame(recipe, cues)
     if start == "auto":
         searched = likelihood
         if has_evidence(likelihood) and observed is not None:
@@ -747,6 +786,37 @@ def track(tracker, key: PRNGKeyArray, scene: TestScene, *, chunk_frames: int | N
     return poses, joints_of(poses), info
 
 
+def track_stream(prepared: PreparedTracking, further=(), *, on_chunk=None):
+    """Run a prepared tracker over its scene's frames, then on over each further segment's
+    observations (an iterable, e.g. ``segment_observations`` of a video read a segment at a
+    time), the particles and their weights carried across (``filters.continue_filter``; the
+    k-th further segment's frames use ``fold_in(prepared.key, k)``). Only one segment's
+    observations are held at a time. With no further segment it is ``track`` in one pass.
+    ``on_chunk(poses (t, D), joints (t, J, 3))`` is called with the estimates so far after each
+    segment.
+
+    Returns:
+        ``(poses (T, D), joints (T, J, 3), infos)``: float64 estimates and the per-frame
+        ``StepInfo`` of every segment.
+    """
+    scene = prepared.scene
+
+    def joints_of(info):
+        return np.asarray(forward_kinematics(scene.body.skeleton, jnp.asarray(info.estimate, TRACKING_DTYPE)), np.float64)
+
+    state, info = run_filter(prepared.tracker, prepared.key, scene.initial_pose, scene.observations)
+    infos, joints = [jax.tree.map(np.asarray, info)], [joints_of(info)]
+    for k, observations in enumerate(itertools.chain([None], further)):
+        if k:
+            state, info = continue_filter(prepared.tracker, jax.random.fold_in(prepared.key, k), state, observations)
+            infos.append(jax.tree.map(np.asarray, info))
+            joints.append(joints_of(info))
+        if on_chunk is not None:
+            on_chunk(np.concatenate([np.asarray(i.estimate, np.float64) for i in infos]), np.concatenate(joints))
+    info = infos[0] if len(infos) == 1 else jax.tree.map(lambda *xs: np.concatenate(xs), *infos)
+    return np.asarray(info.estimate, np.float64), np.concatenate(joints), info
+
+
 def track_runs(tracker, keys: Key[Array, " runs"], scene: TestScene):
     """Several runs of a tracker on a prepared scene in one compiled call: ``run_filter`` vmapped
     over ``keys`` (R,). Run r equals ``track(tracker, keys[r], scene)`` up to float rounding.
@@ -829,16 +899,34 @@ def check_model_layout(model, header: dict, sequence: Sequence, name: str) -> No
 
 def track_sequence(sequence: Sequence, model, header: dict | None, method: str, validation=None, spec: TrackingSpec | None = None, *,
                    seed: int = 0, name: str = "test", chunk_frames: int | None = None, on_chunk=None, say=print):
-    """``jaxtrack track``: one registered tracker with a saved manifold model on one test sequence,
+    """``jaxtrack track``: ``prepare_tracking``, then the tracker run over the sequence
+    (``track``; ``chunk_frames`` and ``on_chunk`` as there).
+
+    Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
+    """
+    prepared = prepare_tracking(sequence, model, header, method, validation, spec, seed=seed, name=name, say=say)
+    return track(prepared.tracker, prepared.key, prepared.scene, chunk_frames=chunk_frames, on_chunk=on_chunk)
+
+
+@dataclasses.dataclass(frozen=True)
+class PreparedTracking:
+    """A tracker ready to run on a prepared scene (``prepare_tracking``): ``key`` is its run's
+    PRNG key (``run_filter``'s)."""
+
+    tracker: Any
+    scene: TestScene
+    key: PRNGKeyArray
+
+
+def prepare_tracking(sequence: Sequence, model, header: dict | None, method: str, validation=None,
+                     spec: TrackingSpec | None = None, *, seed: int = 0, name: str = "test", say=print) -> PreparedTracking:
+    """One registered tracker with a saved manifold model made ready for one test sequence,
     tracked as ``spec`` says (default ``TrackingSpec()``: its budget, likelihood, body, ground
     prior, velocity and residual; the manifold settings are the model file's). The validation
     motion (a ``Sequence`` or a list of them) fits the tracker's dynamics and the ground
     prior's clearance, and lends its body to a test file of the same ``subject`` that has
     neither skeleton nor joints; None: the model file's own training motion, else (SIR, APF with
-    ``model`` None) the embedded walk (``dynamics_motion``). ``chunk_frames`` and ``on_chunk``
-    as for ``track`` (the estimates so far after each chunk); ``say`` is told what was chosen.
-
-    Returns ``(estimated_poses (T, D), estimated_joints (T, J, 3), infos)``.
+    ``model`` None) the embedded walk (``dynamics_motion``). ``say`` is told what was chosen.
 
     Raises:
         ValueError: on a tracker that cannot run under ``spec`` or on this model, a residual for
@@ -907,4 +995,4 @@ def track_sequence(sequence: Sequence, model, header: dict | None, method: str, 
                                       name=name)
         say(f"{name}: refined limb lengths (mm): " + ", ".join(f"{n} {1000 * v:.0f}" for n, v in limb_lengths_of(scene.body).items()))
         tracker = build(scene)
-    return track(tracker, jax.random.fold_in(run_root, 0), scene, chunk_frames=chunk_frames, on_chunk=on_chunk)
+    return PreparedTracking(tracker, scene, jax.random.fold_in(run_root, 0))

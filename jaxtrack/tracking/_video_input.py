@@ -88,6 +88,129 @@ class VideoInput:
         return [n for n, m, e in zip(names, self.camera_coverage(), self.empty_frames) if m < minimum or e > 0]
 
 
+class VideoStream:
+    """Calibrated videos open for reading, with their tracking resolution and background model
+    (``open_video``): ``read(frames)`` gives the next frames' ``Sequence`` at the tracking
+    resolution (silhouettes, the pictures when kept, the keypoints), so a long video is tracked
+    a segment at a time in the memory of one segment."""
+
+    def __init__(self, *, video, chunks, model, reduce: int, source: Sequence, total_frames: int, wanted: int,
+                 keep_images: bool, through_empty: bool, coverage, seconds: dict):
+        self.video, self._chunks, self.model, self.reduce = video, chunks, model, reduce
+        self.source = source  # the calibration's cameras and every frame's keypoints, at the videos' size
+        self.total_frames, self.wanted = total_frames, wanted
+        self.keep_images, self.through_empty = keep_images, through_empty
+        self.coverage, self.seconds = coverage, seconds
+        self.frames_read = 0
+        self.stopped: str | None = None  # why reading stopped before the end
+        self.empty_frames = np.zeros(len(source.camera_names), int)  # per camera, frames read with an empty silhouette
+        self._left: list = []  # (masks, pictures) decoded past the last segment's end
+        self._ended = False
+
+    def __enter__(self) -> VideoStream:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        start = time.perf_counter()
+        self.video.close()
+        self.seconds["open and close"] += time.perf_counter() - start
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width, height) of the tracking resolution."""
+        width, height = (int(v) for v in self.source.image_size[0])
+        return width // self.reduce, height // self.reduce
+
+    def _finish(self, first: int, block, foreground) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+        """A chunk's silhouettes (waiting for them) up to any empty one, its pictures when kept,
+        and the reason to stop, if any."""
+        start = time.perf_counter()
+        mask, area = (np.asarray(x) for x in foreground)  # (C, t, H, W), (C, t)
+        self.seconds["background"] += time.perf_counter() - start
+        empty = np.argwhere(area == 0)
+        self.empty_frames[:] += (area == 0).sum(axis=1)
+        if self.through_empty:  # the keypoints carry the frames the silhouettes miss
+            empty = empty[:0]
+        t = int(empty[:, 1].min()) if len(empty) else mask.shape[1]
+        reason = None
+        if len(empty):
+            c = int(empty[np.argmin(empty[:, 1]), 0])
+            reason = f"camera {str(self.source.camera_names[c])!r} sees nobody at frame {first + t} (an empty silhouette)"
+        return mask[:, :t], (block[:, :t] if self.keep_images else None), reason
+
+    def read(self, frames: int) -> Sequence | None:
+        """The next ``frames`` frames (fewer at the end, or where a frame cannot be decoded or
+        a camera sees nobody: ``stopped`` then says why) as a ``Sequence`` at the tracking
+        resolution; None when there are none left.
+
+        Each chunk's subtraction is dispatched (XLA runs it on its own threads) before the next
+        chunk is decoded, and waited for after: decoding and subtraction run side by side. On 2
+        cores both stages already use both (no gain measured, docs/video.md); with more cores,
+        or the subtraction on a GPU, decoding runs on what would be idle.
+        """
+        if frames < 1:
+            raise ValueError(f"read at least one frame, got {frames}")
+        pieces, self._left = self._left, []
+        have = sum(m.shape[1] for m, _ in pieces)
+        pending, looped = None, time.perf_counter()
+        while True:
+            block = failure = None
+            queued = have + (pending[1].shape[1] if pending is not None else 0)
+            if queued < frames and not self._ended and self.stopped is None:
+                start = time.perf_counter()
+                try:
+                    first, block = next(self._chunks)
+                except StopIteration:
+                    self._ended = True
+                except VideoFileError as err:
+                    failure = str(err)
+                finally:
+                    self.seconds["decode"] += time.perf_counter() - start
+                if block is not None:
+                    start = time.perf_counter()
+                    foreground = _silhouettes(self.model, block)
+                    self.seconds["background"] += time.perf_counter() - start
+            if pending is not None:
+                mask, pictures, reason = self._finish(*pending)
+                pieces.append((mask, pictures))
+                have += mask.shape[1]
+                if reason:
+                    self.stopped = reason
+                    break
+            if block is None:
+                if failure:
+                    self.stopped = failure
+                break
+            pending = (first, block, foreground)
+        self.seconds["silhouettes"] += time.perf_counter() - looped
+        if not have:
+            return None
+        masks = np.concatenate([m for m, _ in pieces], axis=1)
+        pictures = np.concatenate([p for _, p in pieces], axis=1) if self.keep_images else None
+        if have > frames:  # the last chunk ran past the segment: kept for the next
+            self._left = [(masks[:, frames:], None if pictures is None else pictures[:, frames:])]
+            masks = masks[:, :frames]
+            pictures = None if pictures is None else pictures[:, :frames]
+        first, count = self.frames_read, masks.shape[1]
+        self.frames_read += count
+        keypoints = self.source.keypoints2d
+        segment = self.source.replace(keypoints2d=None if keypoints is None else keypoints[:, first:first + count])
+        # the cameras and keypoints at the tracking resolution (Sequence.resized: pixel centres at integers)
+        return segment.resized(*self.size).replace(silhouettes=masks.view(np.uint8), images=pictures)  # bool and uint8 share a byte
+
+    def input(self, sequence: Sequence) -> VideoInput:
+        """What has been read as a ``VideoInput`` with ``sequence`` (a segment read, or several
+        joined) as its tracking sequence."""
+        count = self.frames_read
+        keypoints = self.source.keypoints2d
+        return VideoInput(sequence=sequence, total_frames=self.total_frames, stopped=self.stopped, seconds=self.seconds,
+                          reduce=self.reduce, coverage=self.coverage, empty_frames=self.empty_frames.copy(),
+                          source=self.source.replace(keypoints2d=None if keypoints is None else keypoints[:, :count]))
+
+
 def common_reductions(sizes) -> list[int]:
     """The whole factors that divide every camera's width and height, (width, height) each,
     ascending (1 first)."""
@@ -204,10 +327,12 @@ def _keypoints_for(keypoints, frames: int, say) -> np.ndarray:
     return keypoints
 
 
-def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
-                        frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
-                        through_empty: bool = False, say=None) -> VideoInput:
-    """Read calibrated videos into a test sequence (module docstring).
+def open_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
+               frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
+               through_empty: bool = False, say=None) -> VideoStream:
+    """Open calibrated videos for reading in segments (``VideoStream.read``): the tracking
+    resolution chosen, the background model fitted, the keypoints checked (module docstring).
+    Use as a context manager, or close it.
 
     Args:
         videos: one video file or image folder per camera, in the rig's order.
@@ -308,12 +433,12 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         coverage = silhouette_coverage(np.asarray(subtract_background(model, pictures).mask), sampled_keypoints, reduce)
     del pictures, person
     say(f"background model: {source}")
-    masks, images, stopped = [], [], None
-    empty_frames = np.zeros(rig.num_views, int)  # per camera, the frames read whose silhouette is empty
     start = time.perf_counter()
-    video = MultiViewVideo(videos, names=rig.names, frame_sizes=sizes, reduce=reduce)
-    seconds["open and close"] += time.perf_counter() - start
-    with video:
+    try:
+        video = MultiViewVideo(videos, names=rig.names, frame_sizes=sizes, reduce=reduce)
+    finally:
+        seconds["open and close"] += time.perf_counter() - start
+    try:
         for line in video.adjusted:
             say(f"warning: {line}")
         total = video.num_frames
@@ -323,68 +448,32 @@ def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, bac
         fps = float(fps if fps is not None else (video.fps or 0.0))
         if not fps > 0:
             raise ValueError("the sources do not say their frame rate (image folders): give it (--fps)")
-        chunks = video.chunks(chunk, frames=wanted)
-        looped = time.perf_counter()
-
-        def finish(first, block, foreground):
-            """Keep a chunk's silhouettes (waiting for them); the reason to stop, if any."""
-            start = time.perf_counter()
-            mask, area = (np.asarray(x) for x in foreground)  # (C, t, H, W), (C, t)
-            seconds["background"] += time.perf_counter() - start
-            empty = np.argwhere(area == 0)
-            empty_frames[:] += (area == 0).sum(axis=1)
-            if through_empty:  # the keypoints carry the frames the silhouettes miss
-                empty = empty[:0]
-            t = int(empty[:, 1].min()) if len(empty) else mask.shape[1]
-            masks.append(mask[:, :t])
-            if keep_images:
-                images.append(block[:, :t])
-            if len(empty):
-                c = int(empty[np.argmin(empty[:, 1]), 0])
-                return f"camera {rig.names[c]!r} sees nobody at frame {first + t} (an empty silhouette)"
-            return None
-
-        # Each chunk's subtraction is dispatched (XLA runs it on its own threads) before the next
-        # chunk is decoded, and waited for after: decoding and subtraction run side by side. On
-        # 2 cores both stages already use both (no gain measured, docs/video.md); with more
-        # cores, or the subtraction on a GPU, decoding runs on what would be idle.
-        pending = None
-        while True:
-            start = time.perf_counter()
-            try:
-                first, block = next(chunks)
-            except StopIteration:
-                block, failure = None, None
-            except VideoFileError as err:
-                block, failure = None, str(err)
-            finally:
-                seconds["decode"] += time.perf_counter() - start
-            if block is not None:
-                start = time.perf_counter()
-                foreground = _silhouettes(model, block)
-                seconds["background"] += time.perf_counter() - start
-            if pending is not None:
-                stopped = finish(*pending)
-                if stopped:
-                    break
-            if block is None:
-                stopped = failure
-                break
-            pending = (first, block, foreground)
-        seconds["silhouettes"] = time.perf_counter() - looped
-        closing = time.perf_counter()
-    seconds["open and close"] += time.perf_counter() - closing
-    count = sum(m.shape[1] for m in masks)
-    if count == 0:
-        raise VideoFileError(f"nothing to track: {stopped}")
-    silhouettes = np.concatenate(masks, axis=1).view(np.uint8)  # bool and uint8 share a byte: no copy
+    except BaseException:
+        video.close()
+        raise
     source = Sequence.create(
         fps=fps, camera_K=np.asarray(rig.K, np.float64), camera_R=np.asarray(rig.R, np.float64),
         camera_t=np.asarray(rig.t, np.float64), camera_dist=np.asarray(rig.dist, np.float64),
         image_size=np.asarray(rig.image_size, np.int64), camera_names=np.asarray(rig.names),
-        keypoints2d=None if keypoints is None else np.asarray(keypoints[:, :count], np.float32))
-    # the cameras and keypoints at the tracking resolution (Sequence.resized: pixel centres at integers)
-    sequence = source.resized(sizes[0][0] // reduce, sizes[0][1] // reduce).replace(
-        silhouettes=silhouettes, images=np.concatenate(images, axis=1) if keep_images else None)
-    return VideoInput(sequence=sequence, total_frames=total, stopped=stopped, seconds=seconds, reduce=reduce, source=source,
-                      coverage=coverage, empty_frames=empty_frames)
+        keypoints2d=None if keypoints is None else np.asarray(keypoints, np.float32))
+    return VideoStream(video=video, chunks=video.chunks(chunk, frames=wanted), model=model, reduce=reduce, source=source,
+                       total_frames=total, wanted=wanted, keep_images=keep_images, through_empty=through_empty,
+                       coverage=coverage, seconds=seconds)
+
+
+def sequence_from_video(videos, rig: CameraRig, *, fps: float | None = None, background=None, keypoints=None,
+                        frames: int | None = None, chunk: int = 32, keep_images: bool = False, resolution=None,
+                        through_empty: bool = False, say=None) -> VideoInput:
+    """Read calibrated videos into a test sequence (module docstring): ``open_video`` and one
+    ``VideoStream.read`` of every frame. Arguments and errors as ``open_video``'s.
+
+    Raises:
+        VideoFileError: nothing to track (the first frame cannot be decoded, or a camera sees
+            nobody in it).
+    """
+    with open_video(videos, rig, fps=fps, background=background, keypoints=keypoints, frames=frames, chunk=chunk,
+                    keep_images=keep_images, resolution=resolution, through_empty=through_empty, say=say) as stream:
+        sequence = stream.read(stream.wanted)
+        if sequence is None:
+            raise VideoFileError(f"nothing to track: {stream.stopped}")
+        return stream.input(sequence)
