@@ -1103,7 +1103,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "before the command exits with status 3; the estimates are written either way (default: %(default)s)")
     track.add_argument("--chunk-frames", type=_at_least(0), default=100,
                        help="track this many frames at a time and save the estimates so far to OUT.partial.npz after each "
-                            "chunk, so an interruption loses one chunk at most (the same result; 0: one pass); Ctrl-C "
+                            "chunk, so an interruption loses one chunk at most (a test file: the same result; --video: the "
+                            "videos are read a chunk at a time too, in the memory of one chunk; 0: one pass); Ctrl-C "
                             "stops once the chunk being tracked is saved, a second Ctrl-C at once "
                             "(default: %(default)s)")
     track.add_argument("--out", required=True, help="output sequence file with the estimated pose and joints3d")

@@ -250,6 +250,22 @@ def test_a_video_an_encoder_cropped_reads_as_the_whole_on_the_pixels_they_share(
         sequence_from_video(_png_folders(tmp_path / "resized", resized, names), rig, fps=30.0)
 
 
+def _filmed_walk(tmp_path, motion_frames: int, frames: int, size, views: int):
+    """A walk's sequence file and its film (``jaxtrack scene --rgb --video``, 4 background
+    frames): ``(walk.npz, film folder)``."""
+    from jaxtrack.cli import main
+    from jaxtrack.data import motion_sequence
+    from jaxtrack.io import save_sequence
+
+    motion = generate_motion("walk", "S1", num_frames=motion_frames, fps=30.0, key=jax.random.key(0))
+    walk = tmp_path / "walk.npz"
+    save_sequence(walk, motion_sequence(motion))
+    film = tmp_path / "film"
+    assert main(["scene", str(walk), "--rgb", "--video", str(film), "--frames", str(frames), "--width", str(size[0]),
+                 "--height", str(size[1]), "--views", str(views), "--background-frames", "4"]) == 0
+    return walk, film
+
+
 @pytest.mark.slow  # 13 s or more on 2 cores with an empty compilation cache
 def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys, monkeypatch):
     """``scene --rgb --video`` writes what a user of real cameras has; ``track --video`` reads
@@ -257,15 +273,9 @@ def test_film_then_track_from_video_without_ground_truth(tmp_path, capsys, monke
     and exits 4 naming the frame where a camera stops seeing the person, keeping the poses;
     chunked and interrupted with no keypoints, it keeps the first chunk's estimates."""
     from jaxtrack.cli import main
-    from jaxtrack.data import motion_sequence
-    from jaxtrack.io import load_sequence, save_sequence
+    from jaxtrack.io import load_sequence
 
-    motion = generate_motion("walk", "S1", num_frames=12, fps=30.0, key=jax.random.key(0))
-    walk = tmp_path / "walk.npz"
-    save_sequence(walk, motion_sequence(motion))
-    film = tmp_path / "film"
-    assert main(["scene", str(walk), "--rgb", "--video", str(film), "--frames", "8", "--width", "96", "--height", "72",
-                 "--views", "3", "--background-frames", "4"]) == 0
+    walk, film = _filmed_walk(tmp_path, 12, 8, (96, 72), 3)
     assert "calibration.json, keypoints.npz" in capsys.readouterr().out
     names = ["C1", "C2", "C3"]
     assert all((film / f"{n}.mp4").exists() and (film / "background" / f"{n}.mp4").exists() for n in names)
@@ -510,15 +520,9 @@ def test_a_long_video_is_tracked_in_the_memory_of_one_segment(tmp_path):
     import sys
 
     from jaxtrack.cli import main
-    from jaxtrack.data import motion_sequence
-    from jaxtrack.io import MultiViewVideo, save_sequence
+    from jaxtrack.io import MultiViewVideo
 
-    motion = generate_motion("walk", "S1", num_frames=30, fps=30.0, key=jax.random.key(0))
-    walk = tmp_path / "walk.npz"
-    save_sequence(walk, motion_sequence(motion))
-    film = tmp_path / "film"
-    assert main(["scene", str(walk), "--rgb", "--video", str(film), "--frames", "30", "--width", "320", "--height", "240",
-                 "--views", "2", "--background-frames", "4"]) == 0
+    walk, film = _filmed_walk(tmp_path, 30, 30, (320, 240), 2)
     assert main(["fit", str(walk), "--out", str(tmp_path / "m.eqx"), "--steps", "5"]) == 0
     names = ["C1", "C2"]
     with MultiViewVideo([film / f"{n}.mp4" for n in names]) as video:

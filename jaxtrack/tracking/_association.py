@@ -11,8 +11,9 @@ triangulation reprojects onto them:
   triangulated (``triangulate``: the confident joints, least squares on their rays) and kept
   where both reproject within ``CONSISTENT`` of the person's size plus ``DETECTOR_PX`` (the
   error is the median over the joints, in each camera's pixels: the bound scales with the
-  person, as a detector's error mostly does, above a detector's pixel floor). Each other camera adds its detection that reprojects best, where
-  it is within the bound, and the joints are triangulated again. The people are taken
+  person, as a detector's error mostly does, above a detector's pixel floor). Each other
+  camera adds its detection that reprojects best, where it is within the bound, and the
+  joints are triangulated again. The people are taken
   greedily: most cameras first, then the smallest error, no detection used twice.
 - **Through time** (``associate_people``). The person chosen at the first frame where anyone
   is seen by two cameras (``person``: 0, the one seen by most cameras; the list is said) is
@@ -23,7 +24,7 @@ triangulation reprojects onto them:
   alone cannot say whom it sees, and two cameras that disagree with the others may see two
   people whose rays happen to meet (the people with more cameras are taken first).
 
-Lens distortion is ignored here (``camera_rays``): the bounds are a tenth of a person's size.
+Lens distortion is ignored here (``camera_rays``): the bound is a tenth of a person's size.
 """
 
 from __future__ import annotations
@@ -92,19 +93,20 @@ def _error_scale(detection) -> float:
     return detection_size(detection) + DETECTOR_PX / CONSISTENT
 
 
+def _error(pixels, detection, min_joints: int = 1) -> float:
+    """The median distance between projected joints (15, 2) and a detection (15, 3) over the
+    joints both hold, over ``_error_scale`` (inf where they share under ``min_joints``)."""
+    shared = (detection[:, 2] > 0) & np.all(np.isfinite(pixels), axis=-1)
+    if shared.sum() < max(min_joints, 1):
+        return np.inf
+    return float(np.median(np.linalg.norm(pixels[shared] - detection[shared, :2], axis=-1))) / _error_scale(detection)
+
+
 def _errors(rig: CameraRig, joints, chosen) -> np.ndarray:
-    """(C,) per camera with a detection in ``chosen`` ((C, 15, 3) or None rows), the median
-    reprojection error of ``joints`` (15, 3) over ``_error_scale`` (inf where none is shared)."""
+    """(C,) per camera with a detection in ``chosen`` ((C, 15, 3) or None rows), ``_error`` of
+    ``joints`` (15, 3) projected (inf where it has none)."""
     pixels = _project(rig, joints)
-    out = np.full(len(chosen), np.inf)
-    for c, detection in enumerate(chosen):
-        if detection is None:
-            continue
-        shared = (detection[:, 2] > 0) & np.all(np.isfinite(pixels[c]), axis=-1)
-        if shared.sum():
-            off = np.linalg.norm(pixels[c][shared] - detection[shared, :2], axis=-1)
-            out[c] = float(np.median(off)) / _error_scale(detection)
-    return out
+    return np.array([np.inf if detection is None else _error(pixels[c], detection) for c, detection in enumerate(chosen)])
 
 
 def _triangulated(rig: CameraRig, chosen) -> np.ndarray:
@@ -135,14 +137,9 @@ def _grown(rig: CameraRig, frame, person: Person) -> Person:
     for c, detections in enumerate(frame):
         if indices[c] is not None or not len(detections):
             continue
-        best, best_error = None, CONSISTENT
-        for i, detection in enumerate(detections):
-            shared = (detection[:, 2] > 0) & np.all(np.isfinite(pixels[c]), axis=-1)
-            if shared.sum() >= MIN_JOINTS:
-                error = float(np.median(np.linalg.norm(pixels[c][shared] - detection[shared, :2], axis=-1))) / _error_scale(detection)
-                if error <= best_error:
-                    best, best_error = i, error
-        indices[c] = best
+        errors = [_error(pixels[c], detection, MIN_JOINTS) for detection in detections]
+        best = int(np.argmin(errors))
+        indices[c] = best if errors[best] <= CONSISTENT else None
     grown = _person(rig, frame, indices)
     return grown if grown.error <= CONSISTENT else person
 

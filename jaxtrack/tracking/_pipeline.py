@@ -419,10 +419,10 @@ def _pixel_samples(requested, likelihood, likelihood_name, width, height, name, 
     return requested or None
 
 
-def _checked_cues(sequence: Sequence, rig, frames: int, name: str):
+def _checked_cues(sequence: Sequence, rig, frames: int, name: str, silhouette_dtype=np.float32):
     """The first ``frames`` frames' silhouettes and keypoints (C, T, ...), checked (None where absent)."""
     observed = (None if sequence.silhouettes is None
-                else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes")[:, :frames])
+                else check_silhouettes(sequence.silhouettes, rig, name=f"{name} silhouettes", dtype=silhouette_dtype)[:, :frames])
     keypoints = None if sequence.keypoints2d is None else check_keypoints(sequence.keypoints2d, rig.num_views,
                                                                             where=f"{name} keypoints2d")[:, :frames]
     return observed, keypoints
@@ -465,7 +465,9 @@ def segment_observations(scene: TestScene, sequence: Sequence, likelihood: str, 
     ``filters.continue_filter``."""
     recipe = get_likelihood(likelihood)
     rig = sequence.rig(dtype=TRACKING_DTYPE)
-    observed, keypoints = _checked_cues(sequence, rig, sequence.num_frames, name)
+    # sampled from bytes (the same samples: sample_pixels reads observed > 0.5), not a float32 copy 4 times their size
+    sampled_only = scene.pixel_samples is not None and not {"edges", "foreground"} & set(recipe.observes)
+    observed, keypoints = _checked_cues(sequence, rig, sequence.num_frames, name, np.uint8 if sampled_only else np.float32)
     observations = jax.tree.map(jnp.asarray, _per_frame(recipe, _cues(recipe, sequence, observed, keypoints, sequence.num_frames,
                                                                        likelihood_options)))
     return observations if scene.pixel_samples is None else _sampled(observations, key, scene.pixel_samples)
